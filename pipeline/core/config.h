@@ -1,0 +1,240 @@
+#pragma once
+// Options structs and their YAML mapping.
+//
+// Every options struct declares its fields once, in a visit() member:
+//
+//   struct RigOptions {
+//     int count = 8;          // number of cameras
+//     double radius = 3.0;    // circle radius [m]
+//     template <class V> void visit(V& v) {
+//       v("count", count, "number of cameras", Range{1, 256});
+//       v("radius", radius, "circle radius [m]", Range{0.5, 50});
+//     }
+//     void check() const {}   // optional cross-field checks, throw ConfigError
+//   };
+//
+// read_options() maps a YAML node onto it (unknown keys and out-of-range values are errors
+// naming the file, line, key path and the accepted values); to_yaml() writes the options a
+// stage actually used. Fields may be bool, int, double, std::string, std::vector of those,
+// another options struct, a std::vector of options structs, or a raw YAML::Node section.
+#include <yaml-cpp/yaml.h>
+
+#include <filesystem>
+#include <fmt/format.h>
+#include <limits>
+#include <optional>
+#include <set>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+#include "pipeline/core/error.h"
+
+namespace fourd {
+
+struct Range {
+  double lo = -std::numeric_limits<double>::infinity();
+  double hi = std::numeric_limits<double>::infinity();
+};
+
+namespace config_detail {
+
+template <class T, class = void>
+struct is_options : std::false_type {};
+struct NullVisitor {
+  template <class U, class... Rest>
+  void operator()(const char*, U&, Rest&&...) {}
+};
+template <class T>
+struct is_options<T, std::void_t<decltype(std::declval<T&>().visit(std::declval<NullVisitor&>()))>>
+    : std::true_type {};
+
+template <class T>
+struct is_vector : std::false_type {};
+template <class T, class A>
+struct is_vector<std::vector<T, A>> : std::true_type {};
+
+std::string location(const std::string& file, const YAML::Node& node);
+[[noreturn]] void fail(const std::string& file, const YAML::Node& node, const std::string& path,
+                       const std::string& message);
+
+template <class T>
+void call_check(const T& opts, const std::string& path) {
+  if constexpr (requires { opts.check(); }) {
+    try {
+      opts.check();
+    } catch (const ConfigError& e) {
+      throw ConfigError(path.empty() ? e.what() : fmt::format("{}: {}", path, e.what()));
+    }
+  }
+}
+
+template <class T>
+void read_value(const std::string& file, const YAML::Node& node, const std::string& path, T& out,
+                const Range& range);
+
+class Reader {
+ public:
+  Reader(const std::string& file, const YAML::Node& node, std::string path)
+      : file_(file), node_(node), path_(std::move(path)) {}
+
+  template <class T>
+  void operator()(const char* key, T& field, const char* /*help*/, Range range = {}) {
+    known_.insert(key);
+    YAML::Node child = node_[key];
+    if (!child.IsDefined() || child.IsNull()) return;  // keep the default
+    read_value(file_, child, path_.empty() ? key : path_ + "." + key, field, range);
+  }
+
+  void finish() const {
+    for (const auto& kv : node_) {
+      std::string key = kv.first.as<std::string>();
+      if (!known_.count(key)) {
+        std::string names;
+        for (const auto& k : known_) names += (names.empty() ? "" : ", ") + k;
+        fail(file_, kv.first, path_.empty() ? key : path_ + "." + key,
+             fmt::format("unknown key '{}' (known keys: {})", key, names));
+      }
+    }
+  }
+
+ private:
+  const std::string& file_;
+  YAML::Node node_;
+  std::string path_;
+  std::set<std::string> known_;
+};
+
+template <class T>
+void read_value(const std::string& file, const YAML::Node& node, const std::string& path, T& out,
+                const Range& range) {
+  if constexpr (std::is_same_v<T, YAML::Node>) {
+    out = node;  // a raw section, mapped later by whoever owns it
+  } else if constexpr (is_options<T>::value) {
+    if (!node.IsMap()) fail(file, node, path, "expected a mapping of option names to values");
+    Reader reader(file, node, path);
+    out.visit(reader);
+    reader.finish();
+    call_check(out, path);
+  } else if constexpr (is_vector<T>::value) {
+    if (!node.IsSequence()) fail(file, node, path, "expected a list");
+    T values;
+    int i = 0;
+    for (const auto& item : node) {
+      typename T::value_type v{};
+      read_value(file, item, fmt::format("{}[{}]", path, i++), v, range);
+      values.push_back(std::move(v));
+    }
+    out = std::move(values);
+  } else {
+    if (!node.IsScalar()) fail(file, node, path, "expected a single value");
+    T v;
+    try {
+      v = node.as<T>();
+    } catch (const YAML::Exception&) {
+      const char* kind = std::is_same_v<T, bool>       ? "true or false"
+                         : std::is_integral_v<T>       ? "an integer"
+                         : std::is_floating_point_v<T> ? "a number"
+                                                       : "a string";
+      fail(file, node, path, fmt::format("'{}' is not {}", node.Scalar(), kind));
+    }
+    if constexpr (std::is_arithmetic_v<T> && !std::is_same_v<T, bool>) {
+      if (!(static_cast<double>(v) >= range.lo && static_cast<double>(v) <= range.hi)) {
+        fail(file, node, path,
+             fmt::format("value {} out of range [{}, {}]", node.Scalar(), range.lo, range.hi));
+      }
+    }
+    out = v;
+  }
+}
+
+class Writer {
+ public:
+  explicit Writer(YAML::Node& node) : node_(node) {}
+  template <class T>
+  void operator()(const char* key, T& field, const char* /*help*/, Range = {}) {
+    node_[key] = to_node(field);
+  }
+  template <class T>
+  static YAML::Node to_node(const T& value) {
+    if constexpr (std::is_same_v<T, YAML::Node>) {
+      return YAML::Clone(value);
+    } else if constexpr (is_options<T>::value) {
+      YAML::Node n(YAML::NodeType::Map);
+      Writer w(n);
+      const_cast<T&>(value).visit(w);
+      return n;
+    } else if constexpr (is_vector<T>::value) {
+      YAML::Node n(YAML::NodeType::Sequence);
+      for (const auto& v : value) n.push_back(to_node(v));
+      return n;
+    } else {
+      return YAML::Node(value);
+    }
+  }
+
+ private:
+  YAML::Node& node_;
+};
+
+}  // namespace config_detail
+
+// Maps `node` onto `opts`; `file` and `path` only name the source in error messages.
+template <class T>
+void read_options(const std::string& file, const YAML::Node& node, const std::string& path,
+                  T& opts) {
+  if (!node.IsDefined() || node.IsNull()) {
+    config_detail::call_check(opts, path);
+    return;
+  }
+  config_detail::read_value(file, node, path, opts, Range{});
+}
+
+template <class T>
+YAML::Node to_yaml(const T& opts) {
+  return config_detail::Writer::to_node(opts);
+}
+
+// Loads a YAML file; a syntax error becomes a ConfigError naming file and line.
+YAML::Node load_yaml_file(const std::filesystem::path& path);
+
+// One line per field: "key (default value): help", nested structs indented. For --help.
+template <class T>
+std::string describe_options(const T& opts, const std::string& indent = "  ");
+
+namespace config_detail {
+class Describer {
+ public:
+  Describer(std::string& out, std::string indent) : out_(out), indent_(std::move(indent)) {}
+  template <class T>
+  void operator()(const char* key, T& field, const char* help, Range range = {}) {
+    if constexpr (std::is_same_v<T, YAML::Node>) {
+      out_ += fmt::format("{}{}: {}\n", indent_, key, help);
+    } else if constexpr (is_options<T>::value) {
+      out_ += fmt::format("{}{}: {}\n", indent_, key, help);
+      Describer d(out_, indent_ + "  ");
+      field.visit(d);
+    } else if constexpr (is_vector<T>::value) {
+      out_ += fmt::format("{}{} (list): {}\n", indent_, key, help);
+    } else {
+      YAML::Emitter e;
+      e << YAML::Flow << field;
+      out_ += fmt::format("{}{} = {}: {}\n", indent_, key, e.c_str(), help);
+    }
+  }
+
+ private:
+  std::string& out_;
+  std::string indent_;
+};
+}  // namespace config_detail
+
+template <class T>
+std::string describe_options(const T& opts, const std::string& indent) {
+  std::string out;
+  config_detail::Describer d(out, indent);
+  const_cast<T&>(opts).visit(d);
+  return out;
+}
+
+}  // namespace fourd

@@ -1,0 +1,94 @@
+#pragma once
+// The session folder (see README "The session folder") and its session.yaml.
+#include <yaml-cpp/yaml.h>
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "pipeline/core/config.h"
+
+namespace fourd {
+
+// A motion class: takes of one kind of motion that form one parametric motion space.
+struct MotionClassConfig {
+  std::string name;                 // e.g. "locomotion"
+  std::vector<std::string> takes;   // takes blended in this space, in parameter order
+  std::string parameter;            // high-level parameter: speed | direction | length | height | reach
+  bool cyclic = false;              // walk/run/turn cycles loop; jumps and reaches do not
+
+  template <class V>
+  void visit(V& v) {
+    v("name", name, "motion class name");
+    v("takes", takes, "takes of this class, in parameter order");
+    v("parameter", parameter, "high-level parameter (speed, direction, length, height, reach)");
+    v("cyclic", cyclic, "whether the motion loops");
+  }
+  void check() const;
+};
+
+struct TransitionConfig {
+  std::string from;
+  std::string to;
+  template <class V>
+  void visit(V& v) {
+    v("from", from, "source motion class");
+    v("to", to, "target motion class");
+  }
+};
+
+struct SessionConfig {
+  std::string name = "session";
+  double fps = 25;  // capture frame rate [frames/s]
+  std::vector<MotionClassConfig> motions;
+  std::vector<TransitionConfig> transitions;
+  // Per-stage sections, each mapped by its stage onto its own options struct.
+  YAML::Node stages;
+
+  template <class V>
+  void visit(V& v) {
+    v("name", name, "session name");
+    v("fps", fps, "capture frame rate [frames/s]", Range{1, 1000});
+    v("motions", motions, "motion classes (parametric motion spaces)");
+    v("transitions", transitions, "transitions the motion graph allows");
+    v("stages", stages, "per-stage options");
+  }
+  void check() const;  // unique names; transitions name known classes
+};
+
+class Session {
+ public:
+  // Opens an existing session folder and reads its session.yaml. Throws InputError if the
+  // folder does not exist, ConfigError if session.yaml is missing or invalid.
+  static Session open(const std::filesystem::path& root);
+
+  const std::filesystem::path& root() const { return root_; }
+  const SessionConfig& config() const { return config_; }
+  std::filesystem::path config_path() const { return root_ / "session.yaml"; }
+
+  // Maps stages.<stage> onto `opts` (defaults where absent); errors name session.yaml's line.
+  template <class T>
+  void stage_options(const std::string& stage, T& opts) const {
+    YAML::Node node = config_.stages ? config_.stages[stage] : YAML::Node();
+    read_options(config_path().string(), node, "stages." + stage, opts);
+  }
+
+  std::filesystem::path dir(const std::string& sub) const { return root_ / sub; }
+  std::filesystem::path calibration_dir() const { return root_ / "calibration"; }
+  std::filesystem::path capture_dir() const { return root_ / "capture"; }
+  std::filesystem::path ground_truth_dir() const { return root_ / "ground_truth"; }
+  std::filesystem::path reports_dir() const { return root_ / "reports"; }
+  std::filesystem::path logs_dir() const { return root_ / "logs"; }
+  // capture/<take>/<camera>/<frame 000000>.png
+  std::filesystem::path capture_image(const std::string& take, const std::string& camera,
+                                      int frame) const;
+
+ private:
+  std::filesystem::path root_;
+  SessionConfig config_;
+};
+
+// "000042": how every per-frame file is named.
+std::string frame_name(int frame);
+
+}  // namespace fourd

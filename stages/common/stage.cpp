@@ -1,0 +1,88 @@
+#include "stages/common/stage.h"
+
+#include <tbb/global_control.h>
+
+#include <memory>
+
+#include "pipeline/core/error.h"
+#include "pipeline/core/log.h"
+
+namespace fourd {
+namespace {
+
+FrameSelection parse_frames(const std::string& take, const std::string& range) {
+  FrameSelection sel;
+  sel.take = take;
+  if (range.empty()) return sel;
+  auto colon = range.find(':');
+  try {
+    if (colon == std::string::npos) {
+      sel.first = sel.last = std::stoi(range);
+    } else {
+      std::string a = range.substr(0, colon), b = range.substr(colon + 1);
+      sel.first = a.empty() ? 0 : std::stoi(a);
+      sel.last = b.empty() ? -1 : std::stoi(b);
+    }
+  } catch (const std::exception&) {
+    throw ConfigError(fmt::format("--frames '{}': expected FIRST:LAST, FIRST: or N", range));
+  }
+  if (sel.first < 0 || (sel.last >= 0 && sel.last < sel.first)) {
+    throw ConfigError(fmt::format("--frames '{}': empty or negative range", range));
+  }
+  return sel;
+}
+
+}  // namespace
+
+int run_stage_main(int argc, char** argv, const StageInfo& info,
+                   const std::function<void(CLI::App&)>& add_options,
+                   const std::function<void(const Session&, const StageArgs&)>& body) {
+  CLI::App app{info.description, std::string("fourd-") + info.name};
+  StageArgs args;
+  std::string take, frames;
+  app.add_option("session", args.session_dir, "session folder (holds session.yaml)")->required();
+  app.add_option("--threads", args.threads, "worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
+  app.add_flag("-v,--verbose", args.verbose, "debug messages");
+  if (info.takes_frame_range) {
+    app.add_option("--take", take, "process only this take");
+    app.add_option("--frames", frames, "process only frames FIRST:LAST (inclusive)");
+  }
+  if (info.supports_oracle) {
+    app.add_option("--oracle", args.oracle,
+                   "validation only: read ground-truth inputs instead of the previous stage's");
+  }
+  if (add_options) add_options(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? kExitOk : kExitUsage;
+  }
+  if (args.verbose) log::set_level(log::Level::kDebug);
+  std::unique_ptr<tbb::global_control> threads;
+  if (args.threads > 0) {
+    threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                    args.threads);
+  }
+  try {
+    args.selection = parse_frames(take, frames);
+    Session session = Session::open(args.session_dir);
+    log::open_file(session.logs_dir() / (std::string(info.name) + ".log"));
+    log::info("fourd-{} on {}", info.name, session.root().string());
+    log::Timer timer;
+    body(session, args);
+    log::info("fourd-{} finished in {:.1f} s ({} warnings)", info.name, timer.seconds(),
+              log::warning_count());
+    log::open_file({});
+    return kExitOk;
+  } catch (const Error& e) {
+    log::error("fourd-{}: {}", info.name, e.what());
+    log::open_file({});
+    return e.exit_code();
+  } catch (const std::exception& e) {
+    log::error("fourd-{}: internal error: {}", info.name, e.what());
+    log::open_file({});
+    return kExitFailure;
+  }
+}
+
+}  // namespace fourd

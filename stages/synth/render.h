@@ -1,0 +1,94 @@
+#pragma once
+// The virtual studio: a camera rig around the capture volume and an Embree renderer that
+// draws the textured performer over a chroma-green backdrop with a floor and soft shadows,
+// with anti-aliasing, lens distortion and sensor noise.
+#include <cstdint>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <vector>
+
+#include "pipeline/core/camera.h"
+#include "pipeline/core/config.h"
+#include "pipeline/core/mesh.h"
+
+namespace fourd::synth {
+
+struct RigOptions {
+  int count = 8;              // cameras equally spaced on a circle
+  double radius = 3.5;        // circle radius [m]
+  double height = 1.6;        // camera centre height above the floor [m]
+  double target_height = 0.9; // all cameras look at (0, 0, target_height) [m]
+  int width = 640;            // image width [px]
+  int height_px = 480;        // image height [px]
+  double focal_px = 560;      // focal length [px]
+  double k1 = 0, k2 = 0;      // radial distortion
+  double p1 = 0, p2 = 0;      // tangential distortion
+  double start_angle = 0;     // angle of camera 0 on the circle [deg]
+
+  template <class V>
+  void visit(V& v) {
+    v("count", count, "number of cameras on the circle", Range{1, 256});
+    v("radius", radius, "circle radius [m]", Range{0.5, 100});
+    v("height", height, "camera height [m]", Range{0, 20});
+    v("target_height", target_height, "height of the look-at point [m]", Range{0, 10});
+    v("width", width, "image width [px]", Range{16, 16384});
+    v("height_px", height_px, "image height [px]", Range{16, 16384});
+    v("focal_px", focal_px, "focal length [px]", Range{1, 100000});
+    v("k1", k1, "radial distortion k1", Range{-1, 1});
+    v("k2", k2, "radial distortion k2", Range{-1, 1});
+    v("p1", p1, "tangential distortion p1", Range{-0.1, 0.1});
+    v("p2", p2, "tangential distortion p2", Range{-0.1, 0.1});
+    v("start_angle", start_angle, "angle of camera 0 [deg]", Range{-360, 360});
+  }
+};
+
+// Cameras named cam00, cam01, ... on the circle, all looking at the volume centre.
+std::vector<Camera> make_rig(const RigOptions& options);
+
+struct StudioOptions {
+  int samples_per_pixel = 4;     // anti-aliasing samples on edge pixels (1 = none)
+  double noise_sigma = 2.0;      // sensor noise, std-dev in 8-bit grey levels
+  double light_elevation = 60;   // key light elevation [deg]
+  double light_azimuth = 30;     // key light azimuth [deg]
+  double ambient = 0.35;         // ambient light fraction
+  double wall_distance = 4.5;    // green backdrop cylinder radius [m] (behind the cameras)
+  double backdrop_variation = 0.08;  // relative low-frequency brightness variation of the screen
+
+  template <class V>
+  void visit(V& v) {
+    v("samples_per_pixel", samples_per_pixel, "anti-aliasing samples per pixel", Range{1, 64});
+    v("noise_sigma", noise_sigma, "sensor noise std-dev [grey levels]", Range{0, 50});
+    v("light_elevation", light_elevation, "key light elevation [deg]", Range{0, 90});
+    v("light_azimuth", light_azimuth, "key light azimuth [deg]", Range{-360, 360});
+    v("ambient", ambient, "ambient light fraction", Range{0, 1});
+    v("wall_distance", wall_distance, "backdrop radius [m]", Range{1, 100});
+    v("backdrop_variation", backdrop_variation, "backdrop brightness variation", Range{0, 1});
+  }
+};
+
+struct RenderedView {
+  cv::Mat image;       // CV_8UC3 BGR, what the camera records (with noise)
+  cv::Mat silhouette;  // CV_8UC1, 255 where the performer covers the pixel centre, else 0
+  cv::Mat depth;       // CV_32FC1, camera z of the performer at the pixel centre, 0 elsewhere
+};
+
+// Renders the performer for one frame. Build once per frame (the BVH of the posed mesh), then
+// render every camera; thread-safe across cameras.
+class StudioRenderer {
+ public:
+  explicit StudioRenderer(const StudioOptions& options);
+  ~StudioRenderer();
+  StudioRenderer(const StudioRenderer&) = delete;
+  StudioRenderer& operator=(const StudioRenderer&) = delete;
+
+  // `mesh` must have per-vertex UVs addressing `texture` (CV_8UC3).
+  void set_performer(const Mesh& mesh, const cv::Mat& texture);
+  // `noise_seed` makes the sensor noise deterministic.
+  RenderedView render(const Camera& camera, std::uint64_t noise_seed) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace fourd::synth
