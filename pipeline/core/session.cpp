@@ -13,15 +13,13 @@ void MotionClassConfig::check() const {
 
 void SessionConfig::check() const {
   std::set<std::string> classes;
-  std::set<std::string> takes;
   for (const auto& m : motions) {
     if (!classes.insert(m.name).second) {
       throw ConfigError(fmt::format("motion class '{}' is declared twice", m.name));
     }
-    for (const auto& t : m.takes) {
-      if (!takes.insert(t).second) {
-        throw ConfigError(fmt::format("take '{}' belongs to two motion classes", t));
-      }
+    std::set<std::string> takes(m.takes.begin(), m.takes.end());
+    if (takes.size() != m.takes.size()) {
+      throw ConfigError(fmt::format("motion class '{}' lists a take twice", m.name));
     }
   }
   for (const auto& t : transitions) {

@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# Installs fourd's build and run dependencies from Debian 12 packages (needs root or sudo).
+set -euo pipefail
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+PACKAGES=(
+  build-essential cmake ninja-build ccache pkg-config git python3
+  libeigen3-dev libopencv-dev libcgal-dev libopenmesh-dev libembree-dev
+  libopenimageio-dev openimageio-tools libyaml-cpp-dev nlohmann-json3-dev libcli11-dev
+  libtbb-dev libfmt-dev libxxhash-dev libtinygltf-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+  colmap
+)
+missing=()
+for p in "${PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "fourd setup: installing ${missing[*]}"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+else
+  echo "fourd setup: all Debian packages present"
+fi

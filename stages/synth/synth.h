@@ -1,0 +1,56 @@
+#pragma once
+// The synthetic studio stage: a performer with known geometry and motion, rendered from a
+// virtual camera rig. Writes capture/, calibration/ and ground_truth/ of a session,
+// deterministically from a seed.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "pipeline/core/config.h"
+#include "pipeline/core/session.h"
+#include "stages/common/stage.h"
+#include "stages/synth/character.h"
+#include "stages/synth/motion.h"
+#include "stages/synth/render.h"
+
+namespace fourd::synth {
+
+// Perturbation of the calibration written to calibration/ (the images are rendered with the
+// true cameras): lets the calibration check show that refinement recovers the truth.
+struct CalibrationNoise {
+  double rotation_deg = 0;    // std-dev of a random rotation per camera [deg]
+  double translation_mm = 0;  // std-dev of a random translation per camera [mm]
+  double focal_pct = 0;       // std-dev of a relative focal-length error [%]
+  template <class V>
+  void visit(V& v) {
+    v("rotation_deg", rotation_deg, "rotation error std-dev [deg]", Range{0, 10});
+    v("translation_mm", translation_mm, "translation error std-dev [mm]", Range{0, 500});
+    v("focal_pct", focal_pct, "focal length error std-dev [%]", Range{0, 20});
+  }
+  bool any() const { return rotation_deg > 0 || translation_mm > 0 || focal_pct > 0; }
+};
+
+struct SynthOptions {
+  std::uint64_t seed = 1;  // every random choice derives from it
+  CharacterOptions character;
+  RigOptions rig;
+  StudioOptions studio;
+  CalibrationNoise calibration_noise;
+  std::vector<MotionSpec> takes;
+
+  template <class V>
+  void visit(V& v) {
+    v("seed", seed, "random seed (same seed, same bytes)");
+    v("character", character, "the procedural performer");
+    v("rig", rig, "camera rig");
+    v("studio", studio, "lighting, backdrop, noise");
+    v("calibration_noise", calibration_noise, "error added to the written calibration");
+    v("takes", takes, "the takes to perform and capture");
+  }
+  void check() const;
+};
+
+// Runs the stage on `session` (options from stages.synth of its session.yaml).
+void run_synth(const Session& session, const StageArgs& args);
+
+}  // namespace fourd::synth
