@@ -19,6 +19,11 @@ struct Intrinsics {
   double k1 = 0, k2 = 0;  // radial distortion
   double p1 = 0, p2 = 0;  // tangential distortion
   bool has_distortion() const { return k1 != 0 || k2 != 0 || p1 != 0 || p2 != 0; }
+  // Camera matrix for OpenCV functions (cv::projectPoints, cv::initUndistortRectifyMap...):
+  // the principal point moves by -0.5 because OpenCV puts pixel centres at integers.
+  Eigen::Matrix3d opencv_camera_matrix() const;
+  // Distortion coefficients in OpenCV's order (k1, k2, p1, p2).
+  Eigen::Vector4d opencv_distortion() const { return {k1, k2, p1, p2}; }
 };
 
 // A ray in world space; direction is unit length.

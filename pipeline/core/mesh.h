@@ -34,7 +34,7 @@ struct Mesh {
 
 // Area-weighted vertex normals, unit length (zero for isolated vertices).
 void compute_vertex_normals(Mesh& mesh);
-// Axis-aligned bounding box of the positions.
+// Axis-aligned bounding box of the positions (empty, lo > hi, when there are none).
 void bounding_box(const Mesh& mesh, Vec3f* lo, Vec3f* hi);
 // Eigen view of the positions as a 3 x #V matrix without copying.
 inline Eigen::Map<Eigen::Matrix3Xf> positions_matrix(Mesh& mesh) {
