@@ -2,6 +2,7 @@
 find_package(Eigen3 3.4 REQUIRED NO_MODULE)
 find_package(OpenCV REQUIRED COMPONENTS core imgproc imgcodecs calib3d)
 find_package(OpenMesh CONFIG REQUIRED)
+find_package(CGAL REQUIRED)
 find_package(embree 3 REQUIRED)
 find_package(OpenImageIO CONFIG REQUIRED)
 find_package(yaml-cpp REQUIRED)

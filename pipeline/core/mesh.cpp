@@ -1,5 +1,6 @@
 #include "pipeline/core/mesh.h"
 
+#include <Eigen/Geometry>
 #include <fmt/format.h>
 
 #include <limits>

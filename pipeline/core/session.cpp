@@ -30,7 +30,7 @@ void SessionConfig::check() const {
       }
     }
   }
-  if (stages && !stages.IsMap()) throw ConfigError("stages: expected a mapping of stage names");
+  if (stages && !stages.IsNull() && !stages.IsMap()) throw ConfigError("stages: expected a mapping of stage names");
 }
 
 Session Session::open(const std::filesystem::path& root) {

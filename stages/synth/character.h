@@ -8,13 +8,19 @@
 #include <string>
 #include <vector>
 
+#include "pipeline/core/config.h"
 #include "pipeline/core/mesh.h"
 
 namespace fourd::synth {
 
 // Joints in topological order: parents[i] < i, parents[0] == -1 (the root, at the pelvis).
 // At the rest pose every joint frame is axis-aligned with the world (standing at the origin,
-// facing kForward, arms slightly lowered from a T-pose) and only offset from its parent.
+// facing kForward, arms lowered 45 degrees from a T-pose) and only offset from its parent.
+// rest_offsets[0] is the root's rest position in the world.
+//
+// The procedural performer has 21 joints: pelvis, spine, chest, neck, head,
+// clavicle_{l,r}, upper_arm_{l,r}, forearm_{l,r}, hand_{l,r}, thigh_{l,r}, shin_{l,r},
+// foot_{l,r} (at the ankle), toe_{l,r} (at the ball of the foot).
 struct Skeleton {
   std::vector<std::string> names;
   std::vector<int> parents;
@@ -33,11 +39,16 @@ struct Pose {
   std::vector<Eigen::Quaterniond> local_rotations;  // per joint, relative to the rest frame
 };
 
-// world_from_joint for every joint.
+// The rest pose: root at rest_offsets[0], every local rotation the identity.
+Pose rest_pose(const Skeleton& skeleton);
+
+// world_from_joint for every joint. Throws InputError if the pose has the wrong joint count.
 std::vector<Eigen::Isometry3d> forward_kinematics(const Skeleton& skeleton, const Pose& pose);
 
 struct SkinnedMesh {
-  Mesh rest;                                   // rest-pose mesh with per-vertex UVs
+  // Rest-pose mesh with per-vertex UVs; uv (0,0) is the bottom-left corner of the texture
+  // image, (1,1) the top-right (the OBJ convention: image row = (1 - v) * rows).
+  Mesh rest;
   std::vector<Eigen::Vector4i> joints;         // #V, up to 4 influencing joints
   std::vector<Eigen::Vector4f> weights;        // #V, summing to 1
   std::vector<Eigen::Isometry3d> inverse_bind;  // per joint: joint_from_world at rest
@@ -53,5 +64,30 @@ struct Character {
   cv::Mat texture;  // CV_8UC3 (BGR, OpenCV order), the clothing/skin albedo addressed by UVs
   double height = 0;  // rest-pose height, metres
 };
+
+// The procedural performer. Shape from the options; clothing colours and patterns from the
+// seed. Same options and seed give bit-identical meshes, weights and texture.
+struct CharacterOptions {
+  std::string name = "performer";
+  double height = 1.75;        // standing height, floor to the top of the head [m]
+  double build = 1.0;          // girth of torso and limbs relative to an average build
+  int target_vertices = 5000;  // vertex count of the mesh (met within about 10 %)
+  int texture_size = 1024;     // texture width and height [px]
+
+  template <class V>
+  void visit(V& v) {
+    v("name", name, "performer name");
+    v("height", height, "standing height [m]", Range{1.2, 2.2});
+    v("build", build, "girth relative to an average build", Range{0.75, 1.35});
+    v("target_vertices", target_vertices, "mesh vertex count", Range{3000, 10000});
+    v("texture_size", texture_size, "texture width and height [px]", Range{256, 4096});
+  }
+};
+
+// A watertight, manifold, outward-oriented body mesh meshed from an implicit body of
+// smoothly blended ellipsoids and capsules around the bones, remeshed to near-uniform edges,
+// with smooth skinning weights, per-vertex UVs and a clothing texture (shirt, trousers, skin,
+// hair, shoes; never green, which is the backdrop's colour).
+Character make_procedural_character(const CharacterOptions& options, std::uint64_t seed);
 
 }  // namespace fourd::synth

@@ -42,7 +42,10 @@ struct MotionSpec {
   void check() const;  // kind known, vectors of the right length
 };
 
-// The root's ground-plane state per frame.
+// The root's ground-plane state per frame: the path the performer follows (for walk, run and
+// turn the straight line or arc travelled at exactly the spec's speed, without the pelvis's
+// periodic sway, which averages out over a gait cycle; for jump and reach the pelvis's ground
+// position) and the facing direction (heading, continuous: never wrapped).
 struct RootState {
   Eigen::Vector2d position;  // world x, y [m]
   double heading = 0;        // [rad], angle of the facing direction from +x about +z
@@ -58,9 +61,24 @@ struct MotionClip {
   double cycle_frames = 0;          // cyclic motions: frames per gait cycle (0 otherwise)
   // Parameters measured on the generated motion itself (ground truth for validation), e.g.
   // {"speed": 1.21, "direction_deg_per_s": 0} or {"jump_length": 1.2, "jump_height": 0.3}.
+  //   walk, run, turn: speed [m/s] (root path length over whole gait cycles / their
+  //     duration), direction_deg_per_s (heading change over whole cycles / duration),
+  //     cycle_s (gait cycle duration)
+  //   jump: jump_length [m] (horizontal distance between the feet's stances before and after),
+  //     jump_height [m] (highest pelvis height minus the standing pelvis height at frame 0)
+  //   reach: reach_x, reach_y, reach_z [m] (right palm centre while holding at the target, in
+  //     the body frame of frame 0: x forward, y left from the root, z above the floor)
   std::vector<std::pair<std::string, double>> parameters;
 };
 
+// The motion of `spec` for the procedural performer's skeleton (joint names of
+// make_procedural_character). Deterministic. Throws ConfigError for a spec that cannot be
+// performed (unknown kind, too few frames for a one-shot motion, an unreachable target).
 MotionClip generate_motion(const Skeleton& skeleton, const MotionSpec& spec, double fps);
+
+// Centre of the right palm (the point that reach motions bring to reach_target) for a pose's
+// world_from_joint: on the hand's axis, a third of the forearm's length beyond the wrist.
+Eigen::Vector3d right_palm_position(const Skeleton& skeleton,
+                                    const std::vector<Eigen::Isometry3d>& world_from_joint);
 
 }  // namespace fourd::synth

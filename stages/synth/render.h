@@ -14,16 +14,16 @@
 namespace fourd::synth {
 
 struct RigOptions {
-  int count = 8;              // cameras equally spaced on a circle
-  double radius = 3.5;        // circle radius [m]
-  double height = 1.6;        // camera centre height above the floor [m]
-  double target_height = 0.9; // all cameras look at (0, 0, target_height) [m]
-  int width = 640;            // image width [px]
-  int height_px = 480;        // image height [px]
-  double focal_px = 560;      // focal length [px]
-  double k1 = 0, k2 = 0;      // radial distortion
-  double p1 = 0, p2 = 0;      // tangential distortion
-  double start_angle = 0;     // angle of camera 0 on the circle [deg]
+  int count = 8;               // cameras equally spaced on a circle
+  double radius = 3.5;         // circle radius [m]
+  double height = 1.6;         // camera centre height above the floor [m]
+  double target_height = 0.9;  // all cameras look at (0, 0, target_height) [m]
+  int width = 640;             // image width [px]
+  int height_px = 480;         // image height [px]
+  double focal_px = 560;       // focal length [px]
+  double k1 = 0, k2 = 0;       // radial distortion
+  double p1 = 0, p2 = 0;       // tangential distortion
+  double start_angle = 0;      // angle of camera 0 on the circle [deg]
 
   template <class V>
   void visit(V& v) {
@@ -46,13 +46,15 @@ struct RigOptions {
 std::vector<Camera> make_rig(const RigOptions& options);
 
 struct StudioOptions {
-  int samples_per_pixel = 4;     // anti-aliasing samples on edge pixels (1 = none)
-  double noise_sigma = 2.0;      // sensor noise, std-dev in 8-bit grey levels
-  double light_elevation = 60;   // key light elevation [deg]
-  double light_azimuth = 30;     // key light azimuth [deg]
-  double ambient = 0.35;         // ambient light fraction
-  double wall_distance = 4.5;    // green backdrop cylinder radius [m] (behind the cameras)
+  int samples_per_pixel = 4;         // anti-aliasing samples on edge pixels (1 = none)
+  double noise_sigma = 2.0;          // sensor noise, std-dev in 8-bit grey levels
+  double light_elevation = 60;       // key light elevation [deg]
+  double light_azimuth = 30;         // key light azimuth [deg]
+  double ambient = 0.35;             // ambient light fraction
+  double wall_distance = 4.5;        // green backdrop cylinder radius [m] (behind the cameras)
   double backdrop_variation = 0.08;  // relative low-frequency brightness variation of the screen
+  int shadow_samples = 32;           // light samples per shaded point (soft shadows; 1 = hard)
+  double light_radius = 4;           // angular radius of the key light [deg] (penumbra width)
 
   template <class V>
   void visit(V& v) {
@@ -63,13 +65,23 @@ struct StudioOptions {
     v("ambient", ambient, "ambient light fraction", Range{0, 1});
     v("wall_distance", wall_distance, "backdrop radius [m]", Range{1, 100});
     v("backdrop_variation", backdrop_variation, "backdrop brightness variation", Range{0, 1});
+    v("shadow_samples", shadow_samples, "light samples per point (soft shadows)", Range{1, 64});
+    v("light_radius", light_radius, "angular radius of the key light [deg]", Range{0, 20});
   }
+};
+
+// Work counts of one render, for logs and benchmarks.
+struct RenderStats {
+  std::int64_t camera_rays = 0;          // rays from the camera (centre + anti-aliasing samples)
+  std::int64_t shadow_rays = 0;          // occlusion rays traced by Embree towards the key light
+  std::int64_t supersampled_pixels = 0;  // edge pixels that got samples_per_pixel rays
 };
 
 struct RenderedView {
   cv::Mat image;       // CV_8UC3 BGR, what the camera records (with noise)
   cv::Mat silhouette;  // CV_8UC1, 255 where the performer covers the pixel centre, else 0
   cv::Mat depth;       // CV_32FC1, camera z of the performer at the pixel centre, 0 elsewhere
+  RenderStats stats;
 };
 
 // Renders the performer for one frame. Build once per frame (the BVH of the posed mesh), then
@@ -81,7 +93,10 @@ class StudioRenderer {
   StudioRenderer(const StudioRenderer&) = delete;
   StudioRenderer& operator=(const StudioRenderer&) = delete;
 
-  // `mesh` must have per-vertex UVs addressing `texture` (CV_8UC3).
+  // `mesh` must have per-vertex (or per-corner) UVs addressing `texture` (CV_8UC3, BGR).
+  // UVs follow the OBJ convention: (0,0) is the bottom-left corner of the image, v up.
+  // Uses mesh.normals for smooth shading when present, else computes vertex normals.
+  // Throws InputError when the mesh or the texture is unusable.
   void set_performer(const Mesh& mesh, const cv::Mat& texture);
   // `noise_seed` makes the sensor noise deterministic.
   RenderedView render(const Camera& camera, std::uint64_t noise_seed) const;

@@ -1,0 +1,36 @@
+#pragma once
+// Isosurface extraction from a scalar field sampled on a regular grid, by marching
+// tetrahedra over the Freudenthal (6-tetrahedra) split of every cell. Unlike marching cubes it
+// needs no case table and has no ambiguous cases: the surface is closed and manifold wherever
+// it does not touch the grid border (the border is treated as outside).
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <functional>
+#include <vector>
+
+#include "pipeline/core/mesh.h"
+
+namespace fourd {
+
+// values[(z * ny + y) * nx + x] at world point origin + voxel * (x, y, z).
+struct ScalarGrid {
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero();
+  double voxel = 1;
+  int nx = 0, ny = 0, nz = 0;
+  std::vector<float> values;
+
+  std::size_t index(int x, int y, int z) const {
+    return (static_cast<std::size_t>(z) * ny + y) * nx + x;
+  }
+  float at(int x, int y, int z) const { return values[index(x, y, z)]; }
+  Eigen::Vector3d point(int x, int y, int z) const {
+    return origin + voxel * Eigen::Vector3d(x, y, z);
+  }
+};
+
+// The surface {value == iso}, inside = values below iso; triangles face outward (towards
+// larger values). Samples that are NaN, and the space beyond the grid, count as outside by one
+// voxel (as a signed distance field would).
+Mesh extract_isosurface(const ScalarGrid& grid, float iso = 0.0f);
+
+}  // namespace fourd

@@ -1,0 +1,575 @@
+#include "pipeline/driver/driver.h"
+
+#include <fmt/format.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <tbb/parallel_for.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <ctime>
+#include <nlohmann/json.hpp>
+
+#include "pipeline/core/files.h"
+#include "pipeline/core/log.h"
+
+extern char** environ;
+
+namespace fourd::driver {
+namespace {
+
+constexpr const char* kRecordFormat = "fourd-stage-record";
+constexpr int kRecordVersion = 1;
+
+std::string join(const std::vector<std::string>& names, const char* sep = ", ") {
+  std::string out;
+  for (const auto& n : names) out += (out.empty() ? "" : sep) + n;
+  return out;
+}
+
+std::vector<std::string> stage_names(const std::vector<StageSpec>& stages) {
+  std::vector<std::string> names;
+  for (const auto& s : stages) names.push_back(s.name);
+  if (names.empty()) names.push_back("none");
+  return names;
+}
+
+struct FileEntry {
+  std::string relative;  // to the session root, '/' separators
+  fs::path path;
+  std::uint64_t size = 0;
+};
+
+// Every regular file under the given session sub-folders except completion records, sorted.
+std::vector<FileEntry> list_files(const fs::path& root, const std::vector<std::string>& folders) {
+  std::vector<FileEntry> files;
+  for (const auto& folder : folders) {
+    fs::path dir = root / folder;
+    std::error_code ec;
+    if (!fs::is_directory(dir, ec)) continue;
+    fs::recursive_directory_iterator it(dir, fs::directory_options::follow_directory_symlink, ec);
+    for (; !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+      std::error_code fec;
+      if (!it->is_regular_file(fec) || it->path().filename() == kRecordFile) continue;
+      FileEntry e;
+      e.path = it->path();
+      e.relative = folder + "/" + e.path.lexically_relative(dir).generic_string();
+      e.size = it->file_size(fec);
+      files.push_back(std::move(e));
+    }
+    if (ec) throw IoError(fmt::format("cannot list {}: {}", dir.string(), ec.message()));
+  }
+  std::sort(files.begin(), files.end(),
+            [](const FileEntry& a, const FileEntry& b) { return a.relative < b.relative; });
+  return files;
+}
+
+// YAML -> JSON with every scalar as a string: nlohmann's dump() sorts object keys, which makes
+// the text canonical (independent of key order, comments and formatting).
+nlohmann::json yaml_to_json(const YAML::Node& node) {
+  if (!node.IsDefined()) return nullptr;
+  switch (node.Type()) {
+    case YAML::NodeType::Map: {
+      nlohmann::json obj = nlohmann::json::object();
+      for (const auto& kv : node) obj[kv.first.as<std::string>()] = yaml_to_json(kv.second);
+      return obj;
+    }
+    case YAML::NodeType::Sequence: {
+      nlohmann::json arr = nlohmann::json::array();
+      for (const auto& item : node) arr.push_back(yaml_to_json(item));
+      return arr;
+    }
+    case YAML::NodeType::Scalar:
+      return node.Scalar();
+    default:
+      return nullptr;
+  }
+}
+
+nlohmann::json hashes_to_json(const FileHashes& files) {
+  nlohmann::json obj = nlohmann::json::object();
+  for (const auto& [path, hash] : files) obj[path] = hash;
+  return obj;
+}
+
+FileHashes hashes_from_json(const nlohmann::json& obj) {
+  FileHashes files;
+  for (const auto& [path, hash] : obj.items()) files[path] = hash.get<std::string>();
+  return files;
+}
+
+// "inputs changed: 2 modified, 1 added (capture/walk/cam00/000001.png, ...)"
+std::string describe_difference(const char* what, const FileHashes& before, const FileHashes& now) {
+  std::size_t modified = 0, added = 0, removed = 0;
+  std::vector<std::string> examples;
+  auto note = [&](const std::string& path) {
+    if (examples.size() < 3) examples.push_back(path);
+  };
+  for (const auto& [path, hash] : now) {
+    auto it = before.find(path);
+    if (it == before.end()) {
+      ++added;
+      note(path);
+    } else if (it->second != hash) {
+      ++modified;
+      note(path);
+    }
+  }
+  for (const auto& [path, hash] : before) {
+    if (!now.count(path)) {
+      ++removed;
+      note(path);
+    }
+  }
+  std::vector<std::string> parts;
+  if (modified) parts.push_back(fmt::format("{} modified", modified));
+  if (added) parts.push_back(fmt::format("{} added", added));
+  if (removed) parts.push_back(fmt::format("{} removed", removed));
+  std::size_t total = modified + added + removed;
+  return fmt::format("{} changed: {} ({}{})", what, join(parts), join(examples),
+                     total > examples.size() ? ", ..." : "");
+}
+
+std::string local_time_now() {
+  std::time_t t = std::time(nullptr);
+  std::tm tm{};
+  localtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%d %H:%M:%S", &tm);
+  return buf;
+}
+
+// capture/ holds frames but ground_truth/ does not exist: frames synth did not make.
+bool holds_real_capture(const fs::path& root) {
+  std::error_code ec;
+  if (fs::exists(root / kOracleFolder, ec)) return false;
+  return !list_files(root, {"capture"}).empty();
+}
+
+bool reads_any(const std::vector<std::string>& inputs,
+               const std::map<std::string, std::string>& folders, std::string* which) {
+  for (const auto& in : inputs) {
+    auto it = folders.find(in);
+    if (it != folders.end()) {
+      *which = it->second;
+      return true;
+    }
+  }
+  return false;
+}
+
+}  // namespace
+
+const std::vector<StageSpec>& stage_table() {
+  // The data flow of DESIGN.md "Stages". Segment has no oracle: nothing precedes it but the
+  // capture. Validate reads every stage's outputs plus the ground truth.
+  static const std::vector<StageSpec> table = {
+      {"synth", {}, {"capture", "calibration", "ground_truth"}, false, {}},
+      {"segment", {"capture", "calibration"}, {"segment"}, false, {}},
+      {"reconstruct", {"capture", "segment", "calibration"}, {"reconstruct"}, true, {}},
+      {"align", {"reconstruct"}, {"align"}, true, {}},
+      {"timewarp", {"align"}, {"timewarp"}, true, {}},
+      {"texture", {"align", "capture", "calibration"}, {"texture"}, true, {}},
+      {"graph", {"timewarp", "texture"}, {"graph", "asset"}, true, {}},
+      {"validate",
+       {"calibration", "capture", "ground_truth", "segment", "reconstruct", "align", "timewarp",
+        "texture", "graph", "asset"},
+       {"reports"},
+       false,
+       {}},
+  };
+  return table;
+}
+
+std::vector<StageSpec> built_stages(const fs::path& bin_dir) {
+  std::vector<StageSpec> built;
+  for (const auto& spec : stage_table()) {
+    fs::path exe = bin_dir / ("fourd-" + spec.name);
+    std::error_code ec;
+    if (fs::is_regular_file(exe, ec) && ::access(exe.c_str(), X_OK) == 0) {
+      built.push_back(spec);
+      built.back().executable = exe;
+    }
+  }
+  return built;
+}
+
+fs::path executable_dir() {
+  std::error_code ec;
+  fs::path self = fs::read_symlink("/proc/self/exe", ec);
+  if (ec) throw IoError(fmt::format("cannot locate the fourd executable: {}", ec.message()));
+  return self.parent_path();
+}
+
+std::size_t find_stage(const std::vector<StageSpec>& stages, const std::string& name) {
+  for (std::size_t i = 0; i < stages.size(); ++i) {
+    if (stages[i].name == name) return i;
+  }
+  const auto& all = stage_table();
+  bool known =
+      std::any_of(all.begin(), all.end(), [&](const StageSpec& s) { return s.name == name; });
+  if (known) {
+    throw UsageError(
+        fmt::format("stage '{}' is not built (no fourd-{} beside fourd); available stages: {}",
+                    name, name, join(stage_names(stages))));
+  }
+  throw UsageError(
+      fmt::format("unknown stage '{}'; available stages: {}", name, join(stage_names(stages))));
+}
+
+fs::path record_path(const fs::path& session_root, const StageSpec& stage) {
+  return session_root / stage.outputs.front() / kRecordFile;
+}
+
+std::vector<std::string> effective_inputs(const StageSpec& stage, const std::string& oracle) {
+  std::vector<std::string> inputs = stage.inputs;
+  if (!oracle.empty() && std::find(inputs.begin(), inputs.end(), oracle) == inputs.end()) {
+    inputs.push_back(oracle);
+  }
+  return inputs;
+}
+
+FileHashes hash_folders(const fs::path& session_root, const std::vector<std::string>& folders) {
+  std::vector<FileEntry> files = list_files(session_root, folders);
+  std::vector<std::uint64_t> hashes(files.size());
+  // Captures hold thousands of images: hash them in parallel (hash_file streams each file).
+  tbb::parallel_for(std::size_t{0}, files.size(),
+                    [&](std::size_t i) { hashes[i] = hash_file(files[i].path); });
+  FileHashes out;
+  for (std::size_t i = 0; i < files.size(); ++i)
+    out.emplace(files[i].relative, hash_hex(hashes[i]));
+  return out;
+}
+
+std::uint64_t folder_bytes(const fs::path& session_root, const std::vector<std::string>& folders) {
+  std::uint64_t bytes = 0;
+  for (const auto& f : list_files(session_root, folders)) bytes += f.size;
+  return bytes;
+}
+
+std::string options_hash(const Session& session, const std::string& stage) {
+  nlohmann::json top = yaml_to_json(to_yaml(session.config()));
+  top.erase("stages");
+  const YAML::Node& stages = session.config().stages;
+  nlohmann::json section = nullptr;
+  if (stages.IsDefined() && stages.IsMap()) section = yaml_to_json(stages[stage]);
+  std::string text = "session:" + top.dump() + "\nstages." + stage + ":" + section.dump();
+  return hash_hex(hash_bytes(text));
+}
+
+StageFingerprint fingerprint(const Session& session, const StageSpec& stage,
+                             const std::string& oracle) {
+  StageFingerprint fp;
+  fp.inputs = hash_folders(session.root(), effective_inputs(stage, oracle));
+  fp.options_hash = options_hash(session, stage.name);
+  if (!stage.executable.empty()) fp.executable_hash = hash_hex(hash_file(stage.executable));
+  fp.oracle = oracle;
+  return fp;
+}
+
+std::optional<CompletionRecord> read_record(const fs::path& path) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) return std::nullopt;
+  try {
+    nlohmann::json j = nlohmann::json::parse(read_file(path));
+    if (j.at("format").get<std::string>() != kRecordFormat ||
+        j.at("version").get<int>() != kRecordVersion) {
+      return std::nullopt;
+    }
+    CompletionRecord r;
+    r.stage = j.at("stage").get<std::string>();
+    r.fingerprint.oracle = j.at("oracle").get<std::string>();
+    r.fingerprint.options_hash = j.at("options_hash").get<std::string>();
+    r.fingerprint.executable_hash = j.at("executable_hash").get<std::string>();
+    r.fingerprint.inputs = hashes_from_json(j.at("inputs"));
+    r.outputs = hashes_from_json(j.at("outputs"));
+    r.output_bytes = j.at("output_bytes").get<std::uint64_t>();
+    r.finished = j.at("finished").get<std::string>();
+    r.seconds = j.at("seconds").get<double>();
+    return r;
+  } catch (const nlohmann::json::exception&) {
+    return std::nullopt;
+  } catch (const IoError&) {
+    return std::nullopt;
+  }
+}
+
+void write_record(const fs::path& path, const CompletionRecord& r) {
+  nlohmann::json j;
+  j["format"] = kRecordFormat;
+  j["version"] = kRecordVersion;
+  j["stage"] = r.stage;
+  j["oracle"] = r.fingerprint.oracle;
+  j["options_hash"] = r.fingerprint.options_hash;
+  j["executable_hash"] = r.fingerprint.executable_hash;
+  j["finished"] = r.finished;
+  j["seconds"] = r.seconds;
+  j["output_bytes"] = r.output_bytes;
+  j["inputs"] = hashes_to_json(r.fingerprint.inputs);
+  j["outputs"] = hashes_to_json(r.outputs);
+  write_file_atomic(path, j.dump(1) + "\n");
+}
+
+std::string staleness(const fs::path& session_root, const StageSpec& stage,
+                      const StageFingerprint& current) {
+  fs::path path = record_path(session_root, stage);
+  std::optional<CompletionRecord> record = read_record(path);
+  if (!record) {
+    std::error_code ec;
+    return fs::exists(path, ec)
+               ? "completion record unreadable"
+               : "no completion record (never run, or the last run did not finish)";
+  }
+  const StageFingerprint& before = record->fingerprint;
+  if (record->stage != stage.name)
+    return fmt::format("completion record is for stage '{}'", record->stage);
+  if (before.oracle != current.oracle) {
+    return current.oracle.empty() ? "oracle inputs switched off" : "oracle inputs switched on";
+  }
+  if (before.executable_hash != current.executable_hash) return "stage executable changed";
+  if (before.options_hash != current.options_hash) return "options changed (session.yaml)";
+  if (before.inputs != current.inputs)
+    return describe_difference("inputs", before.inputs, current.inputs);
+  FileHashes outputs = hash_folders(session_root, stage.outputs);
+  if (outputs != record->outputs) return describe_difference("outputs", record->outputs, outputs);
+  return "";
+}
+
+bool session_uses_synth(const Session& session) {
+  const YAML::Node& stages = session.config().stages;
+  return stages.IsDefined() && stages.IsMap() && stages["synth"].IsDefined();
+}
+
+std::vector<StageSpec> plan_run(const Session& session, const std::vector<StageSpec>& built,
+                                const RunRequest& request) {
+  if (!request.only.empty() && !request.from.empty()) {
+    throw UsageError("--only and --from cannot be combined");
+  }
+  for (const auto& name : request.oracle) {
+    const StageSpec& spec = built[find_stage(built, name)];
+    if (!spec.supports_oracle) {
+      std::vector<std::string> can;
+      for (const auto& s : built) {
+        if (s.supports_oracle) can.push_back(s.name);
+      }
+      throw UsageError(fmt::format(
+          "--oracle {}: stage '{}' cannot take ground-truth inputs; stages that can: {}", name,
+          name, can.empty() ? "none built" : join(can)));
+    }
+  }
+  bool uses_synth = session_uses_synth(session);
+  std::vector<StageSpec> plan;
+  if (!request.only.empty()) {
+    const StageSpec& spec = built[find_stage(built, request.only)];
+    if (spec.name == "synth" && !uses_synth) {
+      throw UsageError(fmt::format(
+          "--only synth: {} has no stages.synth section, so capture/ is a real capture that "
+          "synth must not replace; add a stages.synth section to synthesize one",
+          session.config_path().string()));
+    }
+    plan.push_back(spec);
+  } else {
+    std::size_t start = request.from.empty() ? 0 : find_stage(built, request.from);
+    for (std::size_t i = start; i < built.size(); ++i) {
+      if (built[i].name == "synth" && !uses_synth) continue;
+      plan.push_back(built[i]);
+    }
+  }
+  // An oracle request for a stage that will not run is almost certainly a mistake.
+  for (const auto& name : request.oracle) {
+    if (std::none_of(plan.begin(), plan.end(),
+                     [&](const StageSpec& s) { return s.name == name; })) {
+      throw UsageError(fmt::format("--oracle {}: stage '{}' is not part of this run (stages: {})",
+                                   name, name, join(stage_names(plan))));
+    }
+  }
+  return plan;
+}
+
+int run_stage_process(const StageSpec& stage, const fs::path& session_root,
+                      const std::string& oracle, int threads, bool verbose) {
+  std::vector<std::string> args = {stage.executable.string(), session_root.string()};
+  if (!oracle.empty()) {
+    args.push_back("--oracle");
+    args.push_back(oracle);
+  }
+  if (threads > 0) {
+    args.push_back("--threads");
+    args.push_back(std::to_string(threads));
+  }
+  if (verbose) args.push_back("-v");
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+
+  std::fflush(stdout);
+  std::fflush(stderr);
+  pid_t pid = 0;
+  int rc = ::posix_spawn(&pid, stage.executable.c_str(), nullptr, nullptr, argv.data(), environ);
+  if (rc != 0) {
+    throw IoError(fmt::format("cannot start {}: {}", stage.executable.string(), std::strerror(rc)));
+  }
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0) {
+    if (errno != EINTR) {
+      throw IoError(fmt::format("waiting for {} failed: {}", stage.executable.string(),
+                                std::strerror(errno)));
+    }
+  }
+  if (WIFEXITED(status)) return WEXITSTATUS(status);
+  if (WIFSIGNALED(status)) return 128 + WTERMSIG(status);
+  return kExitFailure;
+}
+
+RunResult run_pipeline(const fs::path& session_dir, const std::vector<StageSpec>& built,
+                       const RunRequest& request,
+                       const std::function<void(const StageEvent&)>& on_event) {
+  Session session = Session::open(session_dir);
+  const fs::path& root = session.root();
+  std::vector<StageSpec> plan = plan_run(session, built, request);
+  RunResult result;
+  // Folder -> the stage of this invocation that rewrote it: its readers must rerun.
+  std::map<std::string, std::string> rewritten;
+
+  for (std::size_t i = 0; i < plan.size(); ++i) {
+    const StageSpec& stage = plan[i];
+    StageEvent event;
+    event.index = i + 1;
+    event.count = plan.size();
+    event.stage = stage.name;
+    event.log_file = session.logs_dir() / (stage.name + ".log");
+    auto emit = [&](StageEvent::Kind kind) {
+      event.kind = kind;
+      if (on_event) on_event(event);
+    };
+
+    if (stage.name == "synth" && holds_real_capture(root)) {
+      throw InputError(fmt::format(
+          "{}: holds frames that synth did not make (there is no ground_truth/ folder) and "
+          "synth would replace them. Remove the stages.synth section from session.yaml to "
+          "process this capture, or move capture/ away to synthesize a new one",
+          (root / "capture").string()));
+    }
+
+    std::string oracle = request.oracle.count(stage.name) ? kOracleFolder : "";
+    StageFingerprint fp = fingerprint(session, stage, oracle);
+    std::string upstream;
+    std::string reason;
+    if (request.force) {
+      reason = "forced";
+    } else if (reads_any(effective_inputs(stage, oracle), rewritten, &upstream)) {
+      reason = fmt::format("upstream stage {} ran", upstream);
+    } else {
+      reason = staleness(root, stage, fp);
+    }
+    if (reason.empty()) {
+      event.reason = "up to date";
+      emit(StageEvent::Kind::kSkipped);
+      result.skipped.push_back(stage.name);
+      continue;
+    }
+
+    // Remove the record first: if the stage crashes, the next run must not trust its outputs.
+    fs::path record_file = record_path(root, stage);
+    std::error_code ec;
+    fs::remove(record_file, ec);
+    if (ec) throw IoError(fmt::format("cannot remove {}: {}", record_file.string(), ec.message()));
+
+    event.reason = reason;
+    emit(StageEvent::Kind::kStarted);
+    log::Timer timer;
+    int code = run_stage_process(stage, root, oracle, request.threads, request.verbose);
+    event.seconds = timer.seconds();
+    if (code != 0) {
+      event.exit_code = code;
+      emit(StageEvent::Kind::kFailed);
+      result.exit_code = code;
+      result.failed_stage = stage.name;
+      result.log_file = event.log_file;
+      return result;
+    }
+
+    CompletionRecord record;
+    record.stage = stage.name;
+    record.fingerprint = std::move(fp);
+    record.outputs = hash_folders(root, stage.outputs);
+    record.output_bytes = folder_bytes(root, stage.outputs);
+    record.finished = local_time_now();
+    record.seconds = event.seconds;
+    write_record(record_file, record);  // last: only now is the stage complete
+
+    for (const auto& out : stage.outputs) rewritten[out] = stage.name;
+    emit(StageEvent::Kind::kFinished);
+    result.ran.push_back(stage.name);
+  }
+  return result;
+}
+
+const char* state_name(StageStatus::State state) {
+  switch (state) {
+    case StageStatus::State::kDone:
+      return "done";
+    case StageStatus::State::kChanged:
+      return "changed";
+    case StageStatus::State::kNotRun:
+      return "not run";
+    case StageStatus::State::kIncomplete:
+      return "failed or incomplete";
+    case StageStatus::State::kNotUsed:
+      return "not used";
+  }
+  return "";
+}
+
+std::vector<StageStatus> session_status(const fs::path& session_dir,
+                                        const std::vector<StageSpec>& built) {
+  Session session = Session::open(session_dir);
+  const fs::path& root = session.root();
+  bool uses_synth = session_uses_synth(session);
+  // Folder -> the stage that would rewrite it on the next run.
+  std::map<std::string, std::string> pending;
+  std::vector<StageStatus> table;
+  for (const auto& stage : built) {
+    StageStatus s;
+    s.stage = stage.name;
+    s.output_bytes = folder_bytes(root, stage.outputs);
+    if (stage.name == "synth" && !uses_synth) {
+      s.state = StageStatus::State::kNotUsed;
+      s.detail = "no stages.synth section: capture/ is a real capture";
+      table.push_back(std::move(s));
+      continue;
+    }
+    s.record = read_record(record_path(root, stage));
+    if (!s.record) {
+      std::error_code ec;
+      fs::path log_file = session.logs_dir() / (stage.name + ".log");
+      if (s.output_bytes > 0 || fs::exists(log_file, ec)) {
+        s.state = StageStatus::State::kIncomplete;
+        s.detail =
+            fmt::format("no completion record: the last run failed or was interrupted (see {})",
+                        log_file.string());
+      } else {
+        s.state = StageStatus::State::kNotRun;
+      }
+    } else {
+      const std::string& oracle = s.record->fingerprint.oracle;
+      std::string reason = staleness(root, stage, fingerprint(session, stage, oracle));
+      std::string upstream;
+      if (reason.empty() && reads_any(effective_inputs(stage, oracle), pending, &upstream)) {
+        reason = fmt::format("upstream stage {} will rerun", upstream);
+      }
+      s.state = reason.empty() ? StageStatus::State::kDone : StageStatus::State::kChanged;
+      s.detail = reason;
+    }
+    if (s.state != StageStatus::State::kDone) {
+      for (const auto& out : stage.outputs) pending[out] = stage.name;
+    }
+    table.push_back(std::move(s));
+  }
+  return table;
+}
+
+}  // namespace fourd::driver

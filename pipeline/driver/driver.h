@@ -1,0 +1,176 @@
+#pragma once
+// The `fourd` driver as a library: the stage table, completion records, the decision to skip
+// a stage, the run loop and the status table. main.cpp only parses the command line and prints.
+//
+// Skipping. After a stage runs successfully the driver writes a completion record,
+// `<first output folder>/.fourd_stage.json`, LAST (atomically). It holds the content hash of
+// every input file, a hash of the options the stage sees (its `stages.<name>` section of
+// session.yaml plus the top-level session config, both re-emitted canonically), the hash of the
+// stage executable, the oracle setting, and the hash of every output file. A stage is skipped
+// when all of these still match; it runs when any differs, when its record is missing (the
+// driver deletes the record before starting a stage, so a crashed run never looks complete),
+// when an upstream stage ran in the same invocation, or when --force is given.
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "pipeline/core/error.h"
+#include "pipeline/core/session.h"
+
+namespace fourd::driver {
+
+namespace fs = std::filesystem;
+
+// A command-line mistake (unknown stage name, contradictory options): exit code kExitUsage.
+class UsageError : public Error {
+ public:
+  using Error::Error;
+  ExitCode exit_code() const override { return kExitUsage; }
+};
+
+// One stage of the pipeline and the session folders it reads and writes.
+struct StageSpec {
+  std::string name;                  // "segment"; its executable is fourd-<name>
+  std::vector<std::string> inputs;   // session sub-folders it reads
+  std::vector<std::string> outputs;  // sub-folders it writes; the first holds its record
+  bool supports_oracle = false;      // accepts --oracle ground_truth (DESIGN "Oracle inputs")
+  fs::path executable;               // empty in stage_table(); set by built_stages()
+};
+
+// The folder that replaces a stage's inputs in oracle mode.
+inline constexpr const char* kOracleFolder = "ground_truth";
+// Completion record file name, inside the stage's first output folder.
+inline constexpr const char* kRecordFile = ".fourd_stage.json";
+
+// Every stage in pipeline order (synth ... validate), without executables.
+const std::vector<StageSpec>& stage_table();
+// The stages of stage_table() whose executable `fourd-<name>` exists in `bin_dir`, in order.
+// A stage that is not built is simply absent.
+std::vector<StageSpec> built_stages(const fs::path& bin_dir);
+// Folder holding the running executable (from /proc/self/exe): the stages live beside `fourd`.
+fs::path executable_dir();
+
+// Index of `name` in `stages`; UsageError listing the available names otherwise.
+std::size_t find_stage(const std::vector<StageSpec>& stages, const std::string& name);
+
+fs::path record_path(const fs::path& session_root, const StageSpec& stage);
+// The folders a stage reads: its inputs, plus ground_truth/ when it runs on oracle inputs.
+std::vector<std::string> effective_inputs(const StageSpec& stage, const std::string& oracle);
+
+// Path relative to the session root ('/' separators) -> content hash (hex), sorted by path.
+using FileHashes = std::map<std::string, std::string>;
+
+// Hashes every regular file under the session sub-folders `folders` (recursively, following
+// symlinks). Completion records are left out, so one stage's record never looks like a change
+// to the stages that read its folders. Absent folders contribute nothing.
+FileHashes hash_folders(const fs::path& session_root, const std::vector<std::string>& folders);
+// Total size in bytes of the regular files under the session sub-folders `folders`.
+std::uint64_t folder_bytes(const fs::path& session_root, const std::vector<std::string>& folders);
+
+// Hash of what a stage's options are: the top-level session config (everything but `stages`,
+// with defaults filled in) and the raw `stages.<stage>` section, both emitted canonically
+// (sorted keys), so comments, key order and other stages' sections do not matter.
+std::string options_hash(const Session& session, const std::string& stage);
+
+// Everything a stage's result depends on, as seen before it runs.
+struct StageFingerprint {
+  FileHashes inputs;
+  std::string options_hash;
+  std::string executable_hash;
+  std::string oracle;  // "" or kOracleFolder
+};
+StageFingerprint fingerprint(const Session& session, const StageSpec& stage,
+                             const std::string& oracle);
+
+struct CompletionRecord {
+  std::string stage;
+  StageFingerprint fingerprint;
+  FileHashes outputs;
+  std::uint64_t output_bytes = 0;
+  std::string finished;  // local time "YYYY-MM-DD HH:MM:SS"
+  double seconds = 0;    // wall-clock duration of the run
+};
+
+// Reads a record; nullopt when it is absent or unreadable (a damaged record counts as none).
+std::optional<CompletionRecord> read_record(const fs::path& path);
+// Writes atomically; creates the folder if needed.
+void write_record(const fs::path& path, const CompletionRecord& record);
+
+// Why the stage must run, comparing its record with `current` and with its output files as
+// they are now; an empty string when it is up to date.
+std::string staleness(const fs::path& session_root, const StageSpec& stage,
+                      const StageFingerprint& current);
+
+// What `fourd run` was asked to do.
+struct RunRequest {
+  std::string only;              // run just this stage
+  std::string from;              // run this stage and every one after it
+  bool force = false;            // rerun the selected stages even if up to date
+  std::set<std::string> oracle;  // stages fed ground truth (--oracle STAGE)
+  int threads = 0;               // passed to the stages; 0 = all cores
+  bool verbose = false;          // passed to the stages
+};
+
+// Whether synth belongs to this session's runs: only when session.yaml has a stages.synth
+// section. Without one, capture/ is a real capture and synth must never overwrite it.
+bool session_uses_synth(const Session& session);
+
+// The stages a run considers, in order: `built` narrowed by only/from, without synth when the
+// session does not use it. Throws UsageError for unknown names, --only with --from, an oracle
+// request for a stage that cannot take one, or --only synth on a real capture.
+std::vector<StageSpec> plan_run(const Session& session, const std::vector<StageSpec>& built,
+                                const RunRequest& request);
+
+// Runs one stage executable as a child process (stderr and stdout shared with the driver):
+// `<executable> <session> [--oracle ground_truth] [--threads N] [-v]`. Returns its exit code,
+// 128 + signal number when it was killed. Throws IoError when it cannot be started.
+int run_stage_process(const StageSpec& stage, const fs::path& session_root,
+                      const std::string& oracle, int threads, bool verbose);
+
+struct StageEvent {
+  enum class Kind { kSkipped, kStarted, kFinished, kFailed };
+  Kind kind;
+  std::size_t index = 0;  // 1-based position in the plan
+  std::size_t count = 0;  // stages in the plan
+  std::string stage;
+  std::string reason;  // why it runs, or why it is skipped
+  double seconds = 0;  // kFinished/kFailed: duration
+  int exit_code = 0;   // kFailed
+  fs::path log_file;   // the stage's own log
+};
+
+struct RunResult {
+  int exit_code = kExitOk;   // the failing stage's exit code, else 0
+  std::string failed_stage;  // empty on success
+  fs::path log_file;         // log of the failing stage
+  std::vector<std::string> ran;
+  std::vector<std::string> skipped;
+};
+
+// Opens the session (InputError when the folder does not exist), plans and runs the stages,
+// stopping at the first failure. `on_event` is told about every stage (may be empty).
+RunResult run_pipeline(const fs::path& session_dir, const std::vector<StageSpec>& built,
+                       const RunRequest& request,
+                       const std::function<void(const StageEvent&)>& on_event);
+
+struct StageStatus {
+  enum class State { kDone, kChanged, kNotRun, kIncomplete, kNotUsed };
+  std::string stage;
+  State state = State::kNotRun;
+  std::string detail;                      // what changed, or why not used
+  std::optional<CompletionRecord> record;  // the last successful run, if any
+  std::uint64_t output_bytes = 0;          // size of its output folders now
+};
+const char* state_name(StageStatus::State state);
+
+// The state of every built stage of the session, in order (InputError if it does not exist).
+// A done stage whose upstream stage would rerun is reported as changed.
+std::vector<StageStatus> session_status(const fs::path& session_dir,
+                                        const std::vector<StageSpec>& built);
+
+}  // namespace fourd::driver

@@ -1,0 +1,147 @@
+// `fourd`: runs the pipeline's stage executables over a session folder (see driver.h).
+#include <fmt/format.h>
+#include <tbb/global_control.h>
+
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <memory>
+
+#include "pipeline/core/log.h"
+#include "pipeline/driver/driver.h"
+
+namespace {
+
+using namespace fourd;
+using namespace fourd::driver;
+
+std::string human_bytes(std::uint64_t bytes) {
+  if (bytes >= (1ull << 30)) return fmt::format("{:.1f} GB", bytes / double(1ull << 30));
+  if (bytes >= (1ull << 20)) return fmt::format("{:.1f} MB", bytes / double(1ull << 20));
+  if (bytes >= (1ull << 10)) return fmt::format("{:.1f} kB", bytes / double(1ull << 10));
+  return fmt::format("{} B", bytes);
+}
+
+std::string stage_list(const std::vector<StageSpec>& stages) {
+  std::string out;
+  for (const auto& s : stages) out += (out.empty() ? "" : ", ") + s.name;
+  return out.empty() ? "none built" : out;
+}
+
+void print_event(const StageEvent& e) {
+  switch (e.kind) {
+    case StageEvent::Kind::kSkipped:
+      log::info("[{}/{}] {}: up to date, skipped", e.index, e.count, e.stage);
+      break;
+    case StageEvent::Kind::kStarted:
+      log::info("[{}/{}] {} ... ({})", e.index, e.count, e.stage, e.reason);
+      break;
+    case StageEvent::Kind::kFinished:
+      log::info("[{}/{}] {} done in {:.1f} s", e.index, e.count, e.stage, e.seconds);
+      break;
+    case StageEvent::Kind::kFailed:
+      log::error("[{}/{}] {} failed after {:.1f} s with exit code {}; see {}", e.index, e.count,
+                 e.stage, e.seconds, e.exit_code, e.log_file.string());
+      break;
+  }
+}
+
+int command_run(const std::string& session_dir, const RunRequest& request,
+                const std::vector<StageSpec>& built) {
+  log::Timer timer;
+  RunResult result = run_pipeline(session_dir, built, request, print_event);
+  if (!result.failed_stage.empty()) {
+    log::error("fourd: stopped: stage {} failed (exit code {}); its log is {}", result.failed_stage,
+               result.exit_code, result.log_file.string());
+    return result.exit_code;
+  }
+  log::info("fourd: ran {} stage(s), skipped {} up to date, in {:.1f} s", result.ran.size(),
+            result.skipped.size(), timer.seconds());
+  return kExitOk;
+}
+
+int command_status(const std::string& session_dir, const std::vector<StageSpec>& built) {
+  std::vector<StageStatus> table = session_status(session_dir, built);
+  fmt::print("{:<12} {:<21} {:<20} {:>9} {:>10}  {}\n", "stage", "state", "last run", "duration",
+             "outputs", "notes");
+  for (const auto& s : table) {
+    std::string when = s.record ? s.record->finished : "-";
+    std::string took = s.record ? fmt::format("{:.1f} s", s.record->seconds) : "-";
+    std::string notes = s.detail;
+    if (s.record && !s.record->fingerprint.oracle.empty()) {
+      notes = "oracle inputs" + (notes.empty() ? "" : "; " + notes);
+    }
+    fmt::print("{:<12} {:<21} {:<20} {:>9} {:>10}  {}\n", s.stage, state_name(s.state), when, took,
+               s.output_bytes ? human_bytes(s.output_bytes) : "-", notes);
+  }
+  return kExitOk;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::vector<StageSpec> built;
+  try {
+    built = built_stages(executable_dir());
+  } catch (const Error& e) {
+    log::error("fourd: {}", e.what());
+    return e.exit_code();
+  }
+
+  CLI::App app{
+      "fourd: runs the 4D parametric motion graph pipeline over a session folder.\n"
+      "Stages run in order as separate programs (fourd-<stage>, beside fourd); a stage whose\n"
+      "inputs, options and program have not changed since its last successful run is skipped.",
+      "fourd"};
+  app.require_subcommand(1);
+  app.footer("stages built, in order: " + stage_list(built));
+
+  std::string session_dir;
+  RunRequest request;
+  std::vector<std::string> oracle;
+  CLI::App* run =
+      app.add_subcommand("run", "run the stages of a session, skipping up-to-date ones");
+  run->add_option("session", session_dir, "session folder (holds session.yaml)")->required();
+  CLI::Option* only = run->add_option("--only", request.only, "run only this stage");
+  run->add_option("--from", request.from, "run this stage and every stage after it")
+      ->excludes(only);
+  run->add_flag("--force", request.force, "rerun the selected stages even when up to date");
+  run->add_option("--oracle", oracle,
+                  "feed STAGE ground-truth inputs instead of the previous stage's output\n"
+                  "(validation; repeatable); switching it on or off reruns the stage")
+      ->allow_extra_args(false)  // one stage per --oracle, so the session positional is not eaten
+      ->type_name("STAGE");
+  run->add_option("--threads", request.threads, "worker threads per stage (0 = all cores)")
+      ->check(CLI::NonNegativeNumber);
+  run->add_flag("-v,--verbose", request.verbose, "debug messages (also from the stages)");
+  run->footer("stages built, in order: " + stage_list(built) +
+              "\nEach stage logs to <session>/logs/<stage>.log. Without a stages.synth section in "
+              "session.yaml,\ncapture/ is a real capture and synth is not run.");
+
+  CLI::App* status = app.add_subcommand("status", "show the state of every stage of a session");
+  status->add_option("session", session_dir, "session folder (holds session.yaml)")->required();
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? kExitOk : kExitUsage;
+  }
+  if (request.verbose) log::set_level(log::Level::kDebug);
+  // --threads also bounds the driver's own work (hashing inputs and outputs).
+  std::unique_ptr<tbb::global_control> threads;
+  if (request.threads > 0) {
+    threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                    request.threads);
+  }
+  request.oracle.insert(oracle.begin(), oracle.end());
+
+  try {
+    if (*run) return command_run(session_dir, request, built);
+    return command_status(session_dir, built);
+  } catch (const Error& e) {
+    log::error("fourd: {}", e.what());
+    return e.exit_code();
+  } catch (const std::exception& e) {
+    log::error("fourd: internal error: {}", e.what());
+    return kExitFailure;
+  }
+}

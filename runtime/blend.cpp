@@ -1,0 +1,315 @@
+#include "runtime/blend.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+
+#include "pipeline/core/error.h"
+
+namespace fourd {
+
+namespace {
+
+constexpr int kPadFloats = 16;
+
+// Tolerance for weights that should sum to 1 or be non-negative (they come from files).
+constexpr double kWeightTolerance = 1e-6;
+
+// Projects w onto the simplex as the header describes; returns N values in `p`.
+void normalised_weights(std::span<const float> w, int n, std::array<double, 3>* p) {
+  assert(static_cast<int>(w.size()) >= n);
+  double sum = 0;
+  for (int i = 0; i < n; ++i) {
+    (*p)[i] = std::max(0.0, static_cast<double>(w[i]));
+    sum += (*p)[i];
+  }
+  for (int i = 0; i < n; ++i) (*p)[i] = sum > 0 ? (*p)[i] / sum : 1.0 / n;
+}
+
+// Barycentric coordinates of w (on the simplex) in one cell; unused entries are 0.
+std::array<double, 3> cell_coordinates(const BlendSpace& space, const std::array<int, 3>& cell,
+                                       const std::array<double, 3>& w) {
+  const int n = space.num_inputs;
+  const double* rw = space.reference_weights.data();
+  if (n == 1) return {1.0, 0.0, 0.0};
+  if (n == 2) {
+    // The weight line is parametrised by s = w_1 (w_0 = 1 - s).
+    const double sa = rw[cell[0] * 2 + 1], sb = rw[cell[1] * 2 + 1];
+    const double gb = (w[1] - sa) / (sb - sa);
+    return {1.0 - gb, gb, 0.0};
+  }
+  // N = 3: solve [wb - wa, wc - wa] (gb, gc) = w - wa in the (w_1, w_2) plane.
+  const double* a = rw + cell[0] * 3;
+  const double* b = rw + cell[1] * 3;
+  const double* c = rw + cell[2] * 3;
+  const double e1x = b[1] - a[1], e1y = b[2] - a[2];
+  const double e2x = c[1] - a[1], e2y = c[2] - a[2];
+  const double dx = w[1] - a[1], dy = w[2] - a[2];
+  const double det = e1x * e2y - e2x * e1y;
+  const double gb = (dx * e2y - e2x * dy) / det;
+  const double gc = (e1x * dy - dx * e1y) / det;
+  return {1.0 - gb - gc, gb, gc};
+}
+
+// The cell containing w and w's coordinates in it. Cells are few (tens at most), so a scan is
+// cheaper than any search structure. The first cell containing w wins (on a shared edge both
+// give the same blend); if rounding put w just outside every cell, the nearest one does.
+int locate_cell(const BlendSpace& space, const std::array<double, 3>& w, std::array<double, 3>* g) {
+  const int corners = std::min(space.num_inputs, 3);
+  int best = 0;
+  double best_inside = -1e300;
+  for (int c = 0; c < static_cast<int>(space.cells.size()); ++c) {
+    const std::array<double, 3> gc = cell_coordinates(space, space.cells[c], w);
+    double inside = gc[0];
+    for (int k = 1; k < corners; ++k) inside = std::min(inside, gc[k]);
+    if (inside > best_inside) {
+      best_inside = inside;
+      best = c;
+      *g = gc;
+      if (inside >= 0) break;
+    }
+  }
+  // Clamp what rounding left slightly negative and keep the coordinates summing to 1.
+  double sum = 0;
+  for (int k = 0; k < corners; ++k) sum += ((*g)[k] = std::max(0.0, (*g)[k]));
+  for (int k = 0; k < corners; ++k) (*g)[k] /= sum;
+  return best;
+}
+
+// Splits continuous time t in [0, 1] into frame f and fraction alpha towards frame f + 1.
+// Positions within 1e-9 of a whole frame snap to it, so t = f / (F - 1) reads frame f alone.
+void frame_position(const BlendSpace& space, double t, int* f, double* alpha) {
+  const double pos = std::clamp(t, 0.0, 1.0) * (space.num_frames - 1);
+  const double whole = std::round(pos);
+  *f = std::abs(pos - whole) < 1e-9 ? static_cast<int>(whole) : static_cast<int>(std::floor(pos));
+  *alpha = std::abs(pos - whole) < 1e-9 ? 0.0 : pos - *f;
+  if (*f >= space.num_frames - 1) {
+    *f = space.num_frames - 1;
+    *alpha = 0;
+  }
+}
+
+void add_source(BlendSources* out, const float* frame, double coefficient) {
+  if (coefficient <= 0) return;  // adding 0 * x changes nothing: skip the read
+  assert(out->count < kMaxBlendSources);
+  out->sources[out->count] = frame;
+  out->coefficients[out->count] = static_cast<float>(coefficient);
+  ++out->count;
+}
+
+// Corner references and their blend factors at frames f and f + 1.
+void add_time_samples(const BlendSpace& space, std::span<const int> refs, std::span<const double> g,
+                      int f, double alpha, BlendSources* out) {
+  out->count = 0;
+  for (std::size_t k = 0; k < refs.size(); ++k) {
+    add_source(out, space.frame(refs[k], f), (1 - alpha) * g[k]);
+    if (alpha > 0) add_source(out, space.frame(refs[k], f + 1), alpha * g[k]);
+  }
+}
+
+// out = sum of K scaled sources; K is a template parameter so the loop over sources unrolls
+// and the loop over floats vectorises (the sources never alias the output).
+template <int K>
+void weighted_sum_k(const BlendSources& s, std::size_t n, float* __restrict out) {
+  const float* src[K];
+  float c[K];
+  for (int k = 0; k < K; ++k) {
+    src[k] = s.sources[k];
+    c[k] = s.coefficients[k];
+  }
+#pragma GCC ivdep
+  for (std::size_t i = 0; i < n; ++i) {
+    float acc = c[0] * src[0][i];
+    for (int k = 1; k < K; ++k) acc += c[k] * src[k][i];
+    out[i] = acc;
+  }
+}
+
+}  // namespace
+
+int blend_plane_stride(int num_vertices) {
+  return (num_vertices + kPadFloats - 1) / kPadFloats * kPadFloats;
+}
+
+void BlendSpace::check() const {
+  if (num_inputs < 1 || num_inputs > 3) {
+    throw InputError(fmt::format("blend space: {} inputs (1 to 3 supported)", num_inputs));
+  }
+  if (num_vertices < 1 || num_frames < 1 || plane_stride != blend_plane_stride(num_vertices)) {
+    throw InputError(fmt::format("blend space: bad sizes ({} vertices, {} frames, plane stride {})",
+                                 num_vertices, num_frames, plane_stride));
+  }
+  if (reference_weights.size() % num_inputs != 0 || num_references() < num_inputs) {
+    throw InputError(fmt::format("blend space: {} reference weights for {} inputs",
+                                 reference_weights.size(), num_inputs));
+  }
+  const int r = num_references();
+  if (frames.size() != static_cast<std::size_t>(r) * num_frames * frame_stride()) {
+    throw InputError(
+        fmt::format("blend space: {} floats of frames, expected {} references x {} "
+                    "frames x {}",
+                    frames.size(), r, num_frames, frame_stride()));
+  }
+  for (int j = 0; j < r; ++j) {
+    double sum = 0;
+    for (int i = 0; i < num_inputs; ++i) {
+      const double wi = reference_weights[j * num_inputs + i];
+      if (!(wi >= -kWeightTolerance)) {
+        throw InputError(fmt::format("blend space: reference {} has negative weight {}", j, wi));
+      }
+      if (j < num_inputs && std::abs(wi - (i == j ? 1.0 : 0.0)) > kWeightTolerance) {
+        throw InputError(fmt::format("blend space: reference {} must be input {}", j, j));
+      }
+      sum += wi;
+    }
+    if (std::abs(sum - 1) > kWeightTolerance) {
+      throw InputError(fmt::format("blend space: weights of reference {} sum to {}", j, sum));
+    }
+  }
+  if (cells.empty()) throw InputError("blend space: no cells");
+  // The cells must tile the simplex: valid corners and measures adding up to the simplex's.
+  double measure = 0;
+  for (std::size_t c = 0; c < cells.size(); ++c) {
+    const auto& cell = cells[c];
+    for (int k = 0; k < 3; ++k) {
+      const bool used = k < num_inputs;
+      if (used ? (cell[k] < 0 || cell[k] >= r) : cell[k] != -1) {
+        throw InputError(fmt::format("blend space: cell {} has bad corner {}", c, cell[k]));
+      }
+    }
+    const double* rw = reference_weights.data();
+    if (num_inputs == 2) {
+      measure += std::abs(rw[cell[1] * 2 + 1] - rw[cell[0] * 2 + 1]);
+    } else if (num_inputs == 3) {
+      const double* a = rw + cell[0] * 3;
+      const double* b = rw + cell[1] * 3;
+      const double* cc = rw + cell[2] * 3;
+      measure += 0.5 * std::abs((b[1] - a[1]) * (cc[2] - a[2]) - (cc[1] - a[1]) * (b[2] - a[2]));
+    }
+  }
+  const double expected = num_inputs == 1 ? 0.0 : num_inputs == 2 ? 1.0 : 0.5;
+  if (std::abs(measure - expected) > 1e-9) {
+    throw InputError(fmt::format("blend space: cells cover {} of the weight simplex, expected {}",
+                                 measure, expected));
+  }
+}
+
+BlendSpace make_blend_space(int num_inputs, int num_vertices, int num_frames) {
+  if (num_inputs < 1 || num_inputs > 3 || num_vertices < 1 || num_frames < 1) {
+    throw InputError(
+        fmt::format("blend space: unsupported sizes ({} inputs, {} vertices, {} frames)",
+                    num_inputs, num_vertices, num_frames));
+  }
+  BlendSpace space;
+  space.num_inputs = num_inputs;
+  space.num_vertices = num_vertices;
+  space.num_frames = num_frames;
+  space.plane_stride = blend_plane_stride(num_vertices);
+  space.reference_weights.assign(static_cast<std::size_t>(num_inputs) * num_inputs, 0.0);
+  for (int i = 0; i < num_inputs; ++i) space.reference_weights[i * num_inputs + i] = 1.0;
+  space.frames.assign(static_cast<std::size_t>(num_inputs) * num_frames * space.frame_stride(),
+                      0.f);
+  space.cells.push_back({0, num_inputs > 1 ? 1 : -1, num_inputs > 2 ? 2 : -1});
+  return space;
+}
+
+int add_reference(BlendSpace* space, std::span<const double> w) {
+  if (static_cast<int>(w.size()) != space->num_inputs) {
+    throw InputError(fmt::format("blend space: reference with {} weights for {} inputs", w.size(),
+                                 space->num_inputs));
+  }
+  space->reference_weights.insert(space->reference_weights.end(), w.begin(), w.end());
+  space->frames.resize(space->frames.size() + space->num_frames * space->frame_stride(), 0.f);
+  return space->num_references() - 1;
+}
+
+void set_frame(BlendSpace* space, int reference, int f, std::span<const Vec3f> positions) {
+  if (static_cast<int>(positions.size()) != space->num_vertices || reference < 0 ||
+      reference >= space->num_references() || f < 0 || f >= space->num_frames) {
+    throw InputError(
+        fmt::format("blend space: cannot set frame {} of reference {} from {} positions", f,
+                    reference, positions.size()));
+  }
+  float* dst = space->frame(reference, f);
+  const std::size_t stride = space->plane_stride;
+  for (std::size_t v = 0; v < positions.size(); ++v) {
+    dst[v] = positions[v].x();
+    dst[stride + v] = positions[v].y();
+    dst[2 * stride + v] = positions[v].z();
+  }
+}
+
+BlendedFrame make_blended_frame(const BlendSpace& space) {
+  BlendedFrame frame;
+  frame.num_vertices = space.num_vertices;
+  frame.plane_stride = space.plane_stride;
+  frame.data.assign(space.frame_stride(), 0.f);
+  return frame;
+}
+
+void copy_positions(const BlendedFrame& frame, std::vector<Vec3f>* positions) {
+  positions->resize(frame.num_vertices);
+  for (int v = 0; v < frame.num_vertices; ++v) (*positions)[v] = frame.position(v);
+}
+
+void hybrid_blend_sources(const BlendSpace& space, double t, std::span<const float> w,
+                          BlendSources* out) {
+  std::array<double, 3> p{}, g{};
+  normalised_weights(w, space.num_inputs, &p);
+  const auto& cell = space.cells[locate_cell(space, p, &g)];
+  int f = 0;
+  double alpha = 0;
+  frame_position(space, t, &f, &alpha);
+  const int corners = space.num_inputs;
+  add_time_samples(space, std::span<const int>(cell.data(), corners),
+                   std::span<const double>(g.data(), corners), f, alpha, out);
+}
+
+void linear_blend_sources(const BlendSpace& space, double t, std::span<const float> w,
+                          BlendSources* out) {
+  std::array<double, 3> p{};
+  normalised_weights(w, space.num_inputs, &p);
+  int f = 0;
+  double alpha = 0;
+  frame_position(space, t, &f, &alpha);
+  static constexpr std::array<int, 3> kInputs{0, 1, 2};
+  add_time_samples(space, std::span<const int>(kInputs.data(), space.num_inputs),
+                   std::span<const double>(p.data(), space.num_inputs), f, alpha, out);
+}
+
+void weighted_sum(const BlendSources& s, std::size_t n, float* out) {
+  switch (s.count) {
+    case 1:
+      return weighted_sum_k<1>(s, n, out);
+    case 2:
+      return weighted_sum_k<2>(s, n, out);
+    case 3:
+      return weighted_sum_k<3>(s, n, out);
+    case 4:
+      return weighted_sum_k<4>(s, n, out);
+    case 5:
+      return weighted_sum_k<5>(s, n, out);
+    case 6:
+      return weighted_sum_k<6>(s, n, out);
+    default:
+      assert(false && "a blend reads 1 to kMaxBlendSources frames");
+  }
+}
+
+void blend_hybrid(const BlendSpace& space, double t, std::span<const float> w, BlendedFrame* out) {
+  assert(out->plane_stride == space.plane_stride && out->data.size() == space.frame_stride());
+  BlendSources sources;
+  hybrid_blend_sources(space, t, w, &sources);
+  weighted_sum(sources, space.frame_stride(), out->data.data());
+}
+
+void blend_linear(const BlendSpace& space, double t, std::span<const float> w, BlendedFrame* out) {
+  assert(out->plane_stride == space.plane_stride && out->data.size() == space.frame_stride());
+  BlendSources sources;
+  linear_blend_sources(space, t, w, &sources);
+  weighted_sum(sources, space.frame_stride(), out->data.data());
+}
+
+}  // namespace fourd

@@ -1,0 +1,12 @@
+// fourd-segment: foreground silhouettes per camera and frame from the chroma backdrop.
+#include "stages/common/stage.h"
+#include "stages/segment/segment.h"
+
+int main(int argc, char** argv) {
+  fourd::StageInfo info{"segment",
+                        "Foreground segmentation: learns a chroma-key backdrop model per camera, "
+                        "keys every frame, cleans up and writes segment/<take>/<camera>/<frame>.png "
+                        "(0/255) and segment/report.json (foreground fraction per take/camera).",
+                        /*takes_frame_range=*/true};
+  return fourd::run_stage_main(argc, argv, info, nullptr, fourd::segment::run_segment);
+}

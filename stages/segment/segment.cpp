@@ -1,0 +1,219 @@
+#include "stages/segment/segment.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "pipeline/core/capture.h"
+#include "pipeline/core/colmap_model.h"
+#include "pipeline/core/error.h"
+#include "pipeline/core/files.h"
+#include "pipeline/core/image_io.h"
+#include "pipeline/core/log.h"
+
+namespace fourd::segment {
+
+cv::Mat keyness(const cv::Mat& bgr, double offset) {
+  CV_Assert(bgr.type() == CV_8UC3);
+  cv::Mat out(bgr.size(), CV_32F);
+  for (int r = 0; r < bgr.rows; ++r) {
+    const cv::Vec3b* in = bgr.ptr<cv::Vec3b>(r);
+    float* o = out.ptr<float>(r);
+    for (int c = 0; c < bgr.cols; ++c) {
+      float b = in[c][0], g = in[c][1], red = in[c][2];
+      o[c] = (g - std::max(red, b)) / (g + static_cast<float>(offset));
+    }
+  }
+  return out;
+}
+
+double learn_threshold(const std::vector<cv::Mat>& keyness_maps) {
+  // Otsu over a 256-bin histogram of keyness in [-1, 1].
+  constexpr int kBins = 256;
+  std::vector<double> hist(kBins, 0.0);
+  for (const cv::Mat& k : keyness_maps) {
+    for (int r = 0; r < k.rows; ++r) {
+      const float* p = k.ptr<float>(r);
+      for (int c = 0; c < k.cols; ++c) {
+        int bin = static_cast<int>((std::clamp(p[c], -1.f, 1.f) + 1.f) * 0.5f * (kBins - 1) + 0.5f);
+        hist[bin] += 1;
+      }
+    }
+  }
+  double total = 0, sum = 0;
+  for (int i = 0; i < kBins; ++i) {
+    total += hist[i];
+    sum += i * hist[i];
+  }
+  double w0 = 0, sum0 = 0, best = -1;
+  int best_bin = kBins / 2;
+  for (int i = 0; i < kBins; ++i) {
+    w0 += hist[i];
+    sum0 += i * hist[i];
+    double w1 = total - w0;
+    if (w0 == 0 || w1 == 0) continue;
+    double m0 = sum0 / w0, m1 = (sum - sum0) / w1;
+    double between = w0 * w1 * (m0 - m1) * (m0 - m1);
+    if (between > best) {
+      best = between;
+      best_bin = i;
+    }
+  }
+  return (best_bin + 0.5) / (kBins - 1) * 2.0 - 1.0;
+}
+
+cv::Mat key_silhouette(const cv::Mat& keyness_map, double threshold, const SegmentOptions& options) {
+  cv::Mat mask;
+  cv::compare(keyness_map, threshold, mask, cv::CMP_LT);  // foreground: not green enough
+  if (options.open_radius > 0) {
+    cv::Mat kernel = cv::getStructuringElement(
+        cv::MORPH_ELLIPSE, cv::Size(2 * options.open_radius + 1, 2 * options.open_radius + 1));
+    cv::morphologyEx(mask, mask, cv::MORPH_OPEN, kernel);
+  }
+  // Keep the performer: the largest component and any comparable ones (a detached hand).
+  cv::Mat labels, stats, centroids;
+  int n = cv::connectedComponentsWithStats(mask, labels, stats, centroids, 8, CV_32S);
+  int largest = 0;
+  for (int i = 1; i < n; ++i) largest = std::max(largest, stats.at<int>(i, cv::CC_STAT_AREA));
+  std::vector<std::uint8_t> keep(n, 0);
+  for (int i = 1; i < n; ++i) {
+    keep[i] = stats.at<int>(i, cv::CC_STAT_AREA) >= options.min_component_fraction * largest;
+  }
+  for (int r = 0; r < mask.rows; ++r) {
+    const int* l = labels.ptr<int>(r);
+    std::uint8_t* m = mask.ptr<std::uint8_t>(r);
+    for (int c = 0; c < mask.cols; ++c) m[c] = keep[l[c]] ? 255 : 0;
+  }
+  // Fill small enclosed holes (key noise inside clothing); large ones are real (arm gaps).
+  cv::Mat background;
+  cv::bitwise_not(mask, background);
+  n = cv::connectedComponentsWithStats(background, labels, stats, centroids, 4, CV_32S);
+  const double max_hole = options.max_hole_fraction * mask.total();
+  for (int i = 1; i < n; ++i) {
+    int x = stats.at<int>(i, cv::CC_STAT_LEFT), y = stats.at<int>(i, cv::CC_STAT_TOP);
+    int w = stats.at<int>(i, cv::CC_STAT_WIDTH), h = stats.at<int>(i, cv::CC_STAT_HEIGHT);
+    bool touches_border = x == 0 || y == 0 || x + w == mask.cols || y + h == mask.rows;
+    if (!touches_border && stats.at<int>(i, cv::CC_STAT_AREA) <= max_hole) {
+      mask.setTo(255, labels == i);
+    }
+  }
+  return mask;
+}
+
+namespace {
+
+struct Item {
+  std::size_t take;
+  int frame;
+};
+
+struct Coverage {
+  double sum = 0, min = 1, max = 0;
+  int frames = 0, empty = 0;
+};
+
+}  // namespace
+
+void run_segment(const Session& session, const StageArgs& args) {
+  SegmentOptions options;
+  session.stage_options("segment", options);
+  std::vector<Camera> cameras = read_colmap_model(session.calibration_dir());
+  CaptureIndex capture = scan_capture(session, cameras);
+  if (capture.takes.empty()) {
+    throw InputError(fmt::format("{}: no takes to segment", session.capture_dir().string()));
+  }
+  const fs::path out_dir = session.dir("segment");
+
+  // Learn the key per camera from frames spread over every take.
+  std::vector<double> thresholds(cameras.size(), options.threshold);
+  if (options.threshold < 0) {
+    std::vector<std::pair<std::size_t, int>> samples;
+    std::size_t total = 0;
+    for (const auto& t : capture.takes) total += t.frame_count;
+    for (int i = 0; i < options.model_frames; ++i) {
+      std::size_t global = (2 * i + 1) * total / (2 * options.model_frames);
+      for (std::size_t t = 0; t < capture.takes.size(); ++t) {
+        if (global < static_cast<std::size_t>(capture.takes[t].frame_count)) {
+          samples.emplace_back(t, static_cast<int>(global));
+          break;
+        }
+        global -= capture.takes[t].frame_count;
+      }
+    }
+    tbb::parallel_for(std::size_t{0}, cameras.size(), [&](std::size_t c) {
+      std::vector<cv::Mat> maps;
+      for (const auto& [t, f] : samples) {
+        maps.push_back(keyness(read_capture_image(session, cameras[c], capture.takes[t].name, f),
+                               options.key_offset));
+      }
+      thresholds[c] = learn_threshold(maps);
+    });
+    for (std::size_t c = 0; c < cameras.size(); ++c) {
+      log::info("camera {}: key threshold {:.3f} (learned from {} frames)", cameras[c].name,
+                thresholds[c], samples.size());
+    }
+  }
+
+  std::vector<Item> items;
+  for (std::size_t t = 0; t < capture.takes.size(); ++t) {
+    for (int f = 0; f < capture.takes[t].frame_count; ++f) {
+      if (args.selection.selects(capture.takes[t].name, f)) items.push_back({t, f});
+    }
+  }
+  if (!args.selection.take.empty() && items.empty()) {
+    throw InputError(fmt::format("--take {} --frames: selects no frame of the capture",
+                                 args.selection.take));
+  }
+  std::vector<std::vector<Coverage>> coverage(capture.takes.size(),
+                                              std::vector<Coverage>(cameras.size()));
+  std::mutex mutex;
+  log::Progress progress("segmenting frames", items.size());
+  tbb::parallel_for(std::size_t{0}, items.size(), [&](std::size_t i) {
+    const Item& item = items[i];
+    const std::string& take = capture.takes[item.take].name;
+    for (std::size_t c = 0; c < cameras.size(); ++c) {
+      cv::Mat image = read_capture_image(session, cameras[c], take, item.frame);
+      cv::Mat mask = key_silhouette(keyness(image, options.key_offset), thresholds[c], options);
+      double fraction = cv::countNonZero(mask) / static_cast<double>(mask.total());
+      if (fraction < options.warn_foreground_min || fraction > options.warn_foreground_max) {
+        log::warn("take {} camera {} frame {}: foreground covers {:.2f}% of the image — check "
+                  "the key (threshold {:.3f}) or whether the camera sees the volume",
+                  take, cameras[c].name, item.frame, 100 * fraction, thresholds[c]);
+      }
+      write_image_atomic(out_dir / take / cameras[c].name / (frame_name(item.frame) + ".png"), mask,
+                         {cv::IMWRITE_PNG_COMPRESSION, 1});
+      std::lock_guard lock(mutex);
+      Coverage& cov = coverage[item.take][c];
+      cov.sum += fraction;
+      cov.min = std::min(cov.min, fraction);
+      cov.max = std::max(cov.max, fraction);
+      cov.frames += 1;
+      cov.empty += fraction == 0;
+    }
+    progress.step();
+  });
+
+  // Per take and camera foreground fraction, so a bad key is visible at a glance.
+  nlohmann::json report;
+  for (std::size_t c = 0; c < cameras.size(); ++c) report["thresholds"][cameras[c].name] = thresholds[c];
+  for (std::size_t t = 0; t < capture.takes.size(); ++t) {
+    for (std::size_t c = 0; c < cameras.size(); ++c) {
+      const Coverage& cov = coverage[t][c];
+      if (cov.frames == 0) continue;
+      report["foreground_fraction"][capture.takes[t].name][cameras[c].name] = {
+          {"mean", cov.sum / cov.frames}, {"min", cov.min}, {"max", cov.max},
+          {"frames", cov.frames}, {"empty_frames", cov.empty}};
+    }
+  }
+  if (args.selection.take.empty() && args.selection.first == 0 && args.selection.last < 0) {
+    write_file_atomic(out_dir / "report.json", report.dump(1) + "\n");
+    YAML::Emitter used;
+    used << to_yaml(options);
+    write_file_atomic(out_dir / "options.yaml", std::string(used.c_str()) + "\n");
+  }
+}
+
+}  // namespace fourd::segment

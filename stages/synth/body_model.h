@@ -1,0 +1,58 @@
+#pragma once
+// The procedural performer's body before meshing: a skeleton and an implicit body, the smooth
+// union of ellipsoids and round cones ("capsules" with two radii), each carried by one joint.
+// Internal to the synth stage.
+#include <Eigen/Core>
+#include <array>
+#include <vector>
+
+#include "stages/synth/character.h"
+
+namespace fourd::synth::detail {
+
+struct BodyPrimitive {
+  enum Kind { kEllipsoid, kRoundCone };
+  Kind kind = kEllipsoid;
+  int joint = 0;  // the joint that carries it (skinning)
+  // Ellipsoid: centre a, semi-axes radii along the columns of axes (a rotation).
+  // Round cone: sphere of radius ra at a swept to a sphere of radius rb at b, then stretched
+  // about a by `scale` along the world axes (elliptic cross-sections for the torso).
+  Eigen::Vector3d a = Eigen::Vector3d::Zero();
+  Eigen::Vector3d b = Eigen::Vector3d::Zero();
+  double ra = 0, rb = 0;
+  Eigen::Vector3d radii = Eigen::Vector3d::Ones();
+  Eigen::Matrix3d axes = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d scale = Eigen::Vector3d::Ones();
+};
+
+// A limb as a straight axis, for texture charts: start -> end.
+struct LimbAxis {
+  Eigen::Vector3d start = Eigen::Vector3d::Zero();
+  Eigen::Vector3d end = Eigen::Vector3d::Zero();
+};
+
+inline constexpr std::size_t kMaxPrimitives = 64;
+
+struct BodyModel {
+  Skeleton skeleton;
+  std::vector<Eigen::Vector3d> rest_positions;  // world position of every joint at rest
+  std::vector<BodyPrimitive> primitives;  // at most kMaxPrimitives
+  double blend_radius = 0.012;  // smooth-union radius [m]
+  double scale = 1;             // height / nominal height: landmark heights scale with it
+  // Texture-chart axes, index 0 = left, 1 = right.
+  std::array<LimbAxis, 2> arms;   // shoulder -> finger tips
+  std::array<LimbAxis, 2> legs;   // hip -> ankle
+  std::array<LimbAxis, 2> feet;   // heel end -> toe end, at mid-foot height
+};
+
+// The body for the given height and build (no randomness: the shape depends on the options).
+BodyModel make_body_model(double height, double build);
+
+// Signed distance (approximate for ellipsoids) from p to every primitive; negative inside.
+void primitive_distances(const BodyModel& body, const Eigen::Vector3d& p, double* out);
+// The implicit body: smooth minimum of the primitive distances; negative inside.
+double body_field(const BodyModel& body, const Eigen::Vector3d& p);
+// Axis-aligned bounds of the body with `margin` around it.
+void body_bounds(const BodyModel& body, double margin, Eigen::Vector3d* lo, Eigen::Vector3d* hi);
+
+}  // namespace fourd::synth::detail

@@ -1,0 +1,33 @@
+#pragma once
+// Texture atlas and clothing of the procedural performer. Internal to the synth stage.
+//
+// Every vertex belongs to one chart: the torso (with neck and head), an arm, a leg or a foot.
+// A chart maps the angle around its body part's axis, folded to [0, pi] (mirror-symmetric, so
+// the map is continuous all the way round: no seam inside a chart), and the height or the
+// length along the axis. Left and right limbs share their chart. The charts are laid out so
+// that parts that meet on the body (shoulder / arm, hip / leg, ankle / foot) sit at the same
+// texture rows, and the texture between them carries the colour of the junction: the few
+// triangles that straddle two charts sample a clean strip of that colour.
+#include <cstdint>
+#include <opencv2/core.hpp>
+#include <vector>
+
+#include "pipeline/core/mesh.h"
+#include "stages/synth/body_model.h"
+
+namespace fourd::synth::detail {
+
+enum class Chart { kTorso, kArm, kLeg, kFoot };
+
+struct ChartRef {
+  Chart chart = Chart::kTorso;
+  int side = 0;  // 0 = left, 1 = right (limbs)
+};
+
+// Texture coordinates of a rest-pose point of the given chart (OBJ convention, v up).
+Vec2f chart_uv(const BodyModel& body, const ChartRef& ref, const Eigen::Vector3d& point);
+
+// The clothing texture (CV_8UC3, BGR) for the atlas: colours and patterns from the seed.
+cv::Mat paint_clothing(const BodyModel& body, int size, std::uint64_t seed);
+
+}  // namespace fourd::synth::detail

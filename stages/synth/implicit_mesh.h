@@ -1,0 +1,19 @@
+#pragma once
+// Sampling an implicit function on a grid, and mesh clean-up. Internal to the synth stage.
+#include <Eigen/Core>
+#include <functional>
+
+#include "pipeline/core/isosurface.h"
+#include "pipeline/core/mesh.h"
+
+namespace fourd::synth::detail {
+
+// Samples `field` on the grid covering [lo, hi] with the given spacing (in parallel; the
+// result does not depend on the thread count).
+ScalarGrid sample_field(const std::function<double(const Eigen::Vector3d&)>& field,
+                        const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, double spacing);
+
+// The connected component with the most triangles, vertices renumbered in order of first use.
+Mesh largest_component(const Mesh& mesh);
+
+}  // namespace fourd::synth::detail

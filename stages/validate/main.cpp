@@ -1,0 +1,27 @@
+// fourd-validate: compares the stages' outputs with the ground truth; writes reports/.
+#include "pipeline/core/log.h"
+#include "stages/common/stage.h"
+#include "stages/validate/validate.h"
+
+int main(int argc, char** argv) {
+  using namespace fourd;
+  StageInfo info{"validate",
+                 "Compares every stage's outputs with the ground truth of a synthetic session and "
+                 "writes reports/metrics.json and reports/report.md (with pictures). Stages whose "
+                 "outputs are absent are skipped.",
+                 false, false};
+  return run_stage_main(argc, argv, info, nullptr, [](const Session& session, const StageArgs&) {
+    validate::ValidateOptions options;
+    session.stage_options("validate", options);
+    for (const auto& r : validate::run_validation(session, options)) {
+      if (!r.present) {
+        log::info("{}: {}", r.stage, r.summary);
+        continue;
+      }
+      for (const auto& m : r.metrics) {
+        log::info("{} = {:.6g}", validate::metric_key(r.stage, m), m.value);
+      }
+    }
+    log::info("wrote {}", (session.reports_dir() / "metrics.json").string());
+  });
+}

@@ -1,0 +1,140 @@
+#include "stages/validate/validate.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <ctime>
+#include <exception>
+
+#include "pipeline/core/error.h"
+#include "pipeline/core/files.h"
+
+namespace fourd::validate {
+namespace {
+
+const char* input_name(InputKind kind) {
+  switch (kind) {
+    case InputKind::kPipeline:
+      return "pipeline";
+    case InputKind::kOracle:
+      return "oracle";
+    case InputKind::kNone:
+      return "";
+  }
+  return "";
+}
+
+// Counts stay integers in the JSON; everything else is a double.
+nlohmann::json metric_value(double v) {
+  if (std::isfinite(v) && v == std::floor(v) && std::fabs(v) < 9.0e15) {
+    return static_cast<std::int64_t>(v);
+  }
+  return v;
+}
+
+std::string format_value(double v) {
+  if (std::isfinite(v) && v == std::floor(v) && std::fabs(v) < 9.0e15) {
+    return fmt::format("{}", static_cast<std::int64_t>(v));
+  }
+  return fmt::format("{:.6g}", v);
+}
+
+std::string local_time_now() {
+  std::time_t t = std::time(nullptr);
+  std::tm tm{};
+  localtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%d %H:%M:%S", &tm);
+  return buf;
+}
+
+std::string report_markdown(const Session& session, const std::vector<StageReport>& reports) {
+  std::string md = fmt::format("# Validation report: {}\n\n", session.config().name);
+  md += fmt::format(
+      "Written by fourd-validate on {}. Machine-readable numbers: [metrics.json](metrics.json), "
+      "keys `<stage>.<metric>` or `<stage>.<input>.<metric>` where `<input>` says whether the "
+      "stage ran on the previous stage's output (`pipeline`) or on ground truth (`oracle`).\n\n",
+      local_time_now());
+  for (const auto& r : reports) {
+    md += fmt::format("## {}\n\n", r.stage);
+    if (!r.error.empty()) {
+      md += fmt::format("**Validation failed:** {}\n\n", r.error);
+      continue;
+    }
+    md += r.summary + "\n\n";
+    if (!r.present) continue;
+    if (!r.metrics.empty()) {
+      md += "| metric | value | inputs | meaning |\n|---|---:|---|---|\n";
+      for (const auto& m : r.metrics) {
+        const char* input = input_name(m.input);
+        md += fmt::format("| `{}` | {} | {} | {} |\n", metric_key(r.stage, m),
+                          format_value(m.value), *input ? input : "-", m.meaning);
+      }
+      md += "\n";
+    }
+    if (!r.details.empty()) md += r.details + "\n\n";
+    for (const auto& p : r.pictures) {
+      md += fmt::format("![{}]({})\n\n*{}*\n\n", p.caption, p.file, p.caption);
+    }
+  }
+  return md;
+}
+
+}  // namespace
+
+const std::vector<ValidatorEntry>& validators() {
+  static const std::vector<ValidatorEntry> list = {
+      {"synth", validate_synth},
+  };
+  return list;
+}
+
+std::string metric_key(const std::string& stage, const Metric& metric) {
+  const char* input = input_name(metric.input);
+  return *input ? fmt::format("{}.{}.{}", stage, input, metric.name)
+                : fmt::format("{}.{}", stage, metric.name);
+}
+
+nlohmann::json metrics_json(const std::vector<StageReport>& reports) {
+  nlohmann::json doc = nlohmann::json::object();
+  for (const auto& r : reports) {
+    if (!r.present || !r.error.empty() || r.metrics.empty()) continue;
+    nlohmann::json& stage = doc[r.stage];
+    for (const auto& m : r.metrics) {
+      const char* input = input_name(m.input);
+      if (*input) {
+        stage[input][m.name] = metric_value(m.value);
+      } else {
+        stage[m.name] = metric_value(m.value);
+      }
+    }
+  }
+  return doc;
+}
+
+std::vector<StageReport> run_validation(const Session& session, const ValidateOptions& options) {
+  std::filesystem::path reports_dir = session.reports_dir();
+  ensure_directory(reports_dir);
+  ValidationContext context{session, options, reports_dir};
+  std::vector<StageReport> reports;
+  std::exception_ptr first_error;
+  for (const auto& v : validators()) {
+    try {
+      reports.push_back(v.run(context));
+      reports.back().stage = v.stage;
+    } catch (const std::exception& e) {
+      // Keep validating the other stages; the error is rethrown once the reports are written.
+      if (!first_error) first_error = std::current_exception();
+      StageReport failed;
+      failed.stage = v.stage;
+      failed.error = e.what();
+      reports.push_back(std::move(failed));
+    }
+  }
+  write_file_atomic(reports_dir / "metrics.json", metrics_json(reports).dump(2) + "\n");
+  write_file_atomic(reports_dir / "report.md", report_markdown(session, reports));
+  if (first_error) std::rethrow_exception(first_error);
+  return reports;
+}
+
+}  // namespace fourd::validate

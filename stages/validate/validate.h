@@ -1,0 +1,102 @@
+#pragma once
+// The validation stage: compares each stage's outputs with the ground truth of a synthetic
+// session and writes reports/metrics.json (machine-readable, stable) and reports/report.md
+// (Markdown with pictures).
+//
+// metrics.json scheme (DESIGN.md "Validation contract"): one object per stage; a metric that
+// depends on which inputs the stage ran on sits under "pipeline" or "oracle", the others
+// directly under the stage:
+//
+//   {"synth": {"takes": 4, "frames": 120, ...},
+//    "align": {"pipeline": {"correspondence_rms_mm": 8.1}, "oracle": {...}}}
+//
+// Flattened with '.', the keys read "<stage>.<metric>" or "<stage>.<input>.<metric>", with the
+// unit in the metric name; shared/tools/check_metrics.py matches them that way.
+//
+// Adding a stage: write `StageReport validate_<stage>(const ValidationContext&)` (in its own
+// .cpp here) and list it in validators(). A validator returns present = false, without
+// failing, when the stage's outputs are absent.
+#include <filesystem>
+#include <functional>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "pipeline/core/config.h"
+#include "pipeline/core/session.h"
+
+namespace fourd::validate {
+
+struct ValidateOptions {
+  int frames_per_take = 5;  // frames sampled evenly per take for per-frame checks
+  int picture_takes = 4;    // takes pictured in the report (the first ones, by name)
+  int picture_cameras = 2;  // cameras per picture, spread evenly around the rig
+  int panel_width = 480;    // width of one image panel in the pictures [px]
+
+  template <class V>
+  void visit(V& v) {
+    v("frames_per_take", frames_per_take, "frames sampled per take for per-frame checks",
+      Range{1, 100000});
+    v("picture_takes", picture_takes, "takes pictured in the report", Range{0, 1000});
+    v("picture_cameras", picture_cameras, "cameras per picture", Range{1, 16});
+    v("panel_width", panel_width, "width of one image panel [px]", Range{64, 4096});
+  }
+};
+
+// Which inputs a metric was computed on (DESIGN.md "Oracle inputs"). kNone: the metric does
+// not depend on it (synth's own checks, counts).
+enum class InputKind { kNone, kPipeline, kOracle };
+
+struct Metric {
+  std::string name;  // with its unit: "correspondence_rms_mm", "capture_mb"
+  double value = 0;
+  InputKind input = InputKind::kNone;
+  std::string meaning;  // one line for report.md
+};
+
+struct Picture {
+  std::string file;  // relative to reports/
+  std::string caption;
+};
+
+struct StageReport {
+  std::string stage;
+  bool present = false;  // the stage's outputs exist and were validated
+  std::string summary;   // what was checked, or why the stage was skipped (Markdown)
+  std::string details;   // further Markdown (tables) for report.md; may be empty
+  std::vector<Metric> metrics;
+  std::vector<Picture> pictures;
+  std::string error;  // set by run_validation when the validator threw
+};
+
+struct ValidationContext {
+  const Session& session;
+  const ValidateOptions& options;
+  std::filesystem::path reports_dir;  // where pictures go
+};
+
+using Validator = std::function<StageReport(const ValidationContext&)>;
+struct ValidatorEntry {
+  std::string stage;
+  Validator run;
+};
+
+// One validator per stage, in pipeline order.
+const std::vector<ValidatorEntry>& validators();
+
+// The synth validator: counts, capture size, and whether the ground-truth meshes project
+// inside the ground-truth silhouettes (pictures: capture next to the silhouette contour).
+StageReport validate_synth(const ValidationContext& context);
+
+// Runs every validator and writes reports/metrics.json, reports/report.md and the pictures,
+// each atomically. A validator that throws does not stop the others: its stage is reported as
+// failed, both files are still written, and the first error is rethrown at the end.
+std::vector<StageReport> run_validation(const Session& session, const ValidateOptions& options);
+
+// The metrics.json document for `reports` (see the scheme above).
+nlohmann::json metrics_json(const std::vector<StageReport>& reports);
+
+// "synth.takes", "align.oracle.correspondence_rms_mm": the flattened key of a metric.
+std::string metric_key(const std::string& stage, const Metric& metric);
+
+}  // namespace fourd::validate

@@ -1,0 +1,69 @@
+#include "pipeline/core/isosurface.h"
+
+#include <gtest/gtest.h>
+
+#include <map>
+
+namespace fourd {
+namespace {
+
+ScalarGrid sphere_grid(double radius, double voxel, Eigen::Vector3d center) {
+  ScalarGrid g;
+  g.voxel = voxel;
+  g.nx = g.ny = g.nz = static_cast<int>(std::ceil(2.6 * radius / voxel));
+  g.origin = center - Eigen::Vector3d::Constant(1.3 * radius);
+  g.values.resize(static_cast<std::size_t>(g.nx) * g.ny * g.nz);
+  for (int z = 0; z < g.nz; ++z)
+    for (int y = 0; y < g.ny; ++y)
+      for (int x = 0; x < g.nx; ++x)
+        g.values[g.index(x, y, z)] = static_cast<float>((g.point(x, y, z) - center).norm() - radius);
+  return g;
+}
+
+// Every undirected edge is used by exactly two triangles, once in each direction.
+void expect_closed_oriented(const Mesh& m) {
+  std::map<std::pair<int, int>, int> directed;
+  for (const Tri& t : m.triangles)
+    for (int k = 0; k < 3; ++k) directed[{t[k], t[(k + 1) % 3]}]++;
+  for (const auto& [e, n] : directed) {
+    ASSERT_EQ(n, 1) << "edge used twice in one direction";
+    ASSERT_EQ(directed.count({e.second, e.first}), 1u) << "open edge " << e.first << "-" << e.second;
+  }
+  long v = static_cast<long>(m.positions.size()), f = static_cast<long>(m.triangles.size());
+  long e = static_cast<long>(directed.size()) / 2;
+  EXPECT_EQ(v - e + f, 2) << "Euler characteristic of a sphere";
+}
+
+TEST(Isosurface, SphereIsClosedAccurateAndOutward) {
+  const Eigen::Vector3d c(0.1, -0.2, 0.3);
+  Mesh m = extract_isosurface(sphere_grid(0.5, 0.05, c));
+  ASSERT_GT(m.triangles.size(), 500u);
+  expect_closed_oriented(m);
+  double volume = 0;
+  for (const Tri& t : m.triangles) {
+    Eigen::Vector3d a = m.positions[t[0]].cast<double>() - c, b = m.positions[t[1]].cast<double>() - c,
+                    d = m.positions[t[2]].cast<double>() - c;
+    volume += a.dot(b.cross(d)) / 6.0;
+  }
+  EXPECT_NEAR(volume, 4.0 / 3.0 * M_PI * 0.125, 0.03 * 4.0 / 3.0 * M_PI * 0.125);
+  for (const Vec3f& p : m.positions) EXPECT_NEAR((p.cast<double>() - c).norm(), 0.5, 0.01);
+}
+
+TEST(Isosurface, SurfaceTouchingTheBorderIsClosed) {
+  // Inside everywhere: the border closes the surface as a box.
+  ScalarGrid g;
+  g.nx = g.ny = g.nz = 4;
+  g.values.assign(64, -1.0f);
+  Mesh m = extract_isosurface(g);
+  expect_closed_oriented(m);
+}
+
+TEST(Isosurface, EmptyWhenAllOutside) {
+  ScalarGrid g;
+  g.nx = g.ny = g.nz = 3;
+  g.values.assign(27, 1.0f);
+  EXPECT_TRUE(extract_isosurface(g).triangles.empty());
+}
+
+}  // namespace
+}  // namespace fourd

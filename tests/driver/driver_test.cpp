@@ -1,0 +1,420 @@
+// The driver's stage table, completion records and skip decisions, exercised with tiny shell
+// scripts standing in for stage executables (test fixtures) in a temporary folder.
+#include "pipeline/driver/driver.h"
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <fstream>
+
+#include "pipeline/core/files.h"
+
+namespace fourd::driver {
+namespace {
+
+void write_text(const fs::path& path, const std::string& text) {
+  fs::create_directories(path.parent_path());
+  std::ofstream(path, std::ios::trunc) << text;
+}
+
+std::string read_text(const fs::path& path) {
+  std::ifstream in(path);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+// A fake stage: appends a line to <session>/runs_<name>.txt (outside every stage folder),
+// concatenates its input folders into <first output>/result.txt, records its arguments, and
+// exits with `exit_code`.
+void write_fake_stage(const fs::path& exe, const StageSpec& spec, int exit_code = 0) {
+  std::string script = "#!/bin/sh\nset -e\ns=\"$1\"\n";
+  script += fmt::format("echo run >> \"$s/runs_{}.txt\"\n", spec.name);
+  for (const auto& out : spec.outputs) script += fmt::format("mkdir -p \"$s/{}\"\n", out);
+  const std::string& first = spec.outputs.front();
+  script += fmt::format(": > \"$s/{}/result.txt\"\n", first);
+  for (const auto& in : spec.inputs) {
+    script += fmt::format(
+        "if [ -d \"$s/{0}\" ]; then find \"$s/{0}\" -type f -name '*.txt' | sort | "
+        "xargs -r cat >> \"$s/{1}/result.txt\"; fi\n",
+        in, first);
+  }
+  script += fmt::format("echo \"$@\" > \"$s/{}/args.log\"\n", first);
+  script += fmt::format("exit {}\n", exit_code);
+  write_text(exe, script);
+  fs::permissions(exe, fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec);
+}
+
+class DriverTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string pattern = (fs::temp_directory_path() / "fourd_driver_test_XXXXXX").string();
+    ASSERT_NE(::mkdtemp(pattern.data()), nullptr);
+    dir_ = pattern;
+    session_ = dir_ / "session";
+    bin_ = dir_ / "bin";
+    fs::create_directories(bin_);
+    // raw/ plays the part of a capture nobody in this table writes.
+    stages_ = {
+        {"make", {"raw"}, {"a"}, false, {}},
+        {"copy", {"a"}, {"b", "b2"}, true, {}},
+        {"sum", {"a", "b"}, {"c"}, false, {}},
+    };
+    for (auto& s : stages_) {
+      s.executable = bin_ / ("fourd-" + s.name);
+      write_fake_stage(s.executable, s);
+    }
+    write_yaml("name: test\nfps: 25\nstages:\n  make: {gain: 1}\n  copy: {mode: fast}\n");
+    write_text(session_ / "raw" / "x.txt", "raw-1\n");
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  void write_yaml(const std::string& text) { write_text(session_ / "session.yaml", text); }
+  int runs(const std::string& stage) {
+    std::string text = read_text(session_ / ("runs_" + stage + ".txt"));
+    return static_cast<int>(std::count(text.begin(), text.end(), '\n'));
+  }
+  RunResult run(RunRequest request = {}) {
+    events_.clear();
+    return run_pipeline(session_, stages_, request,
+                        [&](const StageEvent& e) { events_.push_back(e); });
+  }
+  std::string reason_of(const std::string& stage) {
+    for (const auto& e : events_) {
+      if (e.stage == stage && e.kind == StageEvent::Kind::kStarted) return e.reason;
+    }
+    return "";
+  }
+
+  fs::path dir_, session_, bin_;
+  std::vector<StageSpec> stages_;
+  std::vector<StageEvent> events_;
+};
+
+TEST(StageTable, PipelineOrderAndDataFlow) {
+  const auto& table = stage_table();
+  std::vector<std::string> names;
+  for (const auto& s : table) names.push_back(s.name);
+  EXPECT_EQ(names, (std::vector<std::string>{"synth", "segment", "reconstruct", "align", "timewarp",
+                                             "texture", "graph", "validate"}));
+  EXPECT_EQ(table.front().outputs,
+            (std::vector<std::string>{"capture", "calibration", "ground_truth"}));
+  EXPECT_TRUE(table.front().inputs.empty());
+  EXPECT_EQ(table.back().outputs, (std::vector<std::string>{"reports"}));
+  // Every folder a stage reads is written by an earlier stage, and no two stages share an
+  // output folder (a stage never writes into another stage's folder).
+  std::set<std::string> written;
+  for (const auto& s : table) {
+    for (const auto& in : s.inputs) EXPECT_TRUE(written.count(in)) << s.name << " reads " << in;
+    for (const auto& out : s.outputs) EXPECT_TRUE(written.insert(out).second) << out;
+  }
+}
+
+TEST_F(DriverTest, BuiltStagesAreThoseWithExecutablesInOrder) {
+  fs::path bin = dir_ / "other_bin";
+  write_fake_stage(bin / "fourd-validate", stage_table().back());
+  write_fake_stage(bin / "fourd-segment", stage_table()[1]);
+  write_text(bin / "fourd-align", "not executable");
+  fs::permissions(bin / "fourd-align", fs::perms::owner_read | fs::perms::owner_write);
+  std::vector<StageSpec> built = built_stages(bin);
+  ASSERT_EQ(built.size(), 2u);
+  EXPECT_EQ(built[0].name, "segment");
+  EXPECT_EQ(built[1].name, "validate");
+  EXPECT_EQ(built[1].executable, bin / "fourd-validate");
+}
+
+TEST_F(DriverTest, SecondRunSkipsEverything) {
+  RunResult first = run();
+  EXPECT_EQ(first.exit_code, 0);
+  EXPECT_EQ(first.ran, (std::vector<std::string>{"make", "copy", "sum"}));
+  EXPECT_TRUE(fs::exists(session_ / "a" / kRecordFile));
+  EXPECT_TRUE(fs::exists(session_ / "b" / kRecordFile));  // first output folder only
+  EXPECT_FALSE(fs::exists(session_ / "b2" / kRecordFile));
+  ASSERT_EQ(events_.size(), 6u);
+  EXPECT_EQ(events_[2].index, 2u);
+  EXPECT_EQ(events_[2].count, 3u);
+
+  RunResult second = run();
+  EXPECT_TRUE(second.ran.empty());
+  EXPECT_EQ(second.skipped.size(), 3u);
+  EXPECT_EQ(runs("make"), 1);
+  EXPECT_EQ(runs("sum"), 1);
+  EXPECT_EQ(read_text(session_ / "c" / "result.txt"), "raw-1\nraw-1\n");
+}
+
+TEST_F(DriverTest, RecordHoldsInputOutputAndOptionHashes) {
+  run();
+  auto record = read_record(session_ / "a" / kRecordFile);
+  ASSERT_TRUE(record);
+  EXPECT_EQ(record->stage, "make");
+  ASSERT_EQ(record->fingerprint.inputs.size(), 1u);
+  EXPECT_EQ(record->fingerprint.inputs.at("raw/x.txt"), hash_hex(hash_bytes("raw-1\n")));
+  EXPECT_EQ(record->fingerprint.executable_hash, hash_hex(hash_file(stages_[0].executable)));
+  EXPECT_TRUE(record->outputs.count("a/result.txt"));
+  EXPECT_FALSE(record->outputs.count(std::string("a/") + kRecordFile));
+  EXPECT_GT(record->output_bytes, 0u);
+  // The record of make (in a/) is not an input of copy, which reads a/.
+  auto copy = read_record(session_ / "b" / kRecordFile);
+  ASSERT_TRUE(copy);
+  for (const auto& [path, hash] : copy->fingerprint.inputs)
+    EXPECT_EQ(path.find(kRecordFile), std::string::npos);
+}
+
+TEST_F(DriverTest, ChangedInputFileRerunsStageAndDownstream) {
+  run();
+  write_text(session_ / "raw" / "x.txt", "raw-2\n");
+  Session session = Session::open(session_);
+  std::string why = staleness(session_, stages_[0], fingerprint(session, stages_[0], ""));
+  EXPECT_NE(why.find("inputs changed: 1 modified (raw/x.txt)"), std::string::npos) << why;
+
+  RunResult result = run();
+  EXPECT_EQ(result.ran, (std::vector<std::string>{"make", "copy", "sum"}));
+  EXPECT_NE(reason_of("make").find("inputs changed"), std::string::npos);
+  EXPECT_NE(reason_of("copy").find("upstream stage make ran"), std::string::npos);
+  EXPECT_EQ(read_text(session_ / "c" / "result.txt"), "raw-2\nraw-2\n");
+
+  write_text(session_ / "raw" / "new.txt", "more\n");  // an added file counts too
+  EXPECT_EQ(run().ran.size(), 3u);
+}
+
+TEST_F(DriverTest, ChangedOptionRerunsOnlyThatStageAndDownstream) {
+  run();
+  // copy's section changes: make stays up to date.
+  write_yaml("name: test\nfps: 25\nstages:\n  make: {gain: 1}\n  copy: {mode: slow}\n");
+  RunResult result = run();
+  EXPECT_EQ(result.ran, (std::vector<std::string>{"copy", "sum"}));
+  EXPECT_EQ(reason_of("copy"), "options changed (session.yaml)");
+  // The top-level config concerns every stage.
+  write_yaml("name: test\nfps: 30\nstages:\n  make: {gain: 1}\n  copy: {mode: slow}\n");
+  EXPECT_EQ(run().ran.size(), 3u);
+}
+
+TEST_F(DriverTest, CommentsAndKeyOrderInSessionYamlDoNotRerun) {
+  run();
+  write_yaml(
+      "# a comment\nstages:\n  copy:\n    mode: fast\n  make:\n    gain: 1\nname: test\nfps: 25\n");
+  EXPECT_TRUE(run().ran.empty());
+  // Leaving out a top-level value equal to its default changes nothing either: the top-level
+  // config is re-emitted with defaults filled in.
+  write_yaml("name: test\nstages:\n  make: {gain: 1}\n  copy: {mode: fast}\n");
+  EXPECT_TRUE(run().ran.empty());
+  EXPECT_NE(options_hash(Session::open(session_), "make"),
+            options_hash(Session::open(session_), "copy"));
+}
+
+TEST_F(DriverTest, DeletedRecordReruns) {
+  run();
+  fs::remove(session_ / "b" / kRecordFile);
+  RunResult result = run();
+  EXPECT_EQ(result.ran, (std::vector<std::string>{"copy", "sum"}));
+  EXPECT_NE(reason_of("copy").find("no completion record"), std::string::npos);
+}
+
+TEST_F(DriverTest, DamagedRecordReruns) {
+  run();
+  write_text(session_ / "c" / kRecordFile, "{not json");
+  EXPECT_EQ(run().ran, (std::vector<std::string>{"sum"}));
+  EXPECT_EQ(reason_of("sum"), "completion record unreadable");
+}
+
+TEST_F(DriverTest, ModifiedOrDeletedOutputReruns) {
+  run();
+  write_text(session_ / "b2" / "stray.txt", "edited by hand\n");
+  EXPECT_EQ(run().ran, (std::vector<std::string>{"copy", "sum"}));
+  EXPECT_NE(reason_of("copy").find("outputs changed: 1 added (b2/stray.txt)"), std::string::npos)
+      << reason_of("copy");
+  fs::remove(session_ / "c" / "result.txt");
+  EXPECT_EQ(run().ran, (std::vector<std::string>{"sum"}));
+}
+
+TEST_F(DriverTest, ChangedExecutableReruns) {
+  run();
+  write_text(stages_[2].executable, read_text(stages_[2].executable) + "# new build\n");
+  EXPECT_EQ(run().ran, (std::vector<std::string>{"sum"}));
+  EXPECT_EQ(reason_of("sum"), "stage executable changed");
+}
+
+TEST_F(DriverTest, OracleIsPassedAndSwitchingItReruns) {
+  run();
+  RunRequest oracle;
+  oracle.oracle = {"copy"};
+  EXPECT_EQ(run(oracle).ran, (std::vector<std::string>{"copy", "sum"}));
+  EXPECT_EQ(reason_of("copy"), "oracle inputs switched on");
+  EXPECT_NE(read_text(session_ / "b" / "args.log").find("--oracle ground_truth"),
+            std::string::npos);
+  EXPECT_EQ(read_record(session_ / "b" / kRecordFile)->fingerprint.oracle, "ground_truth");
+  EXPECT_TRUE(run(oracle).ran.empty());
+  // In oracle mode ground_truth/ is an input.
+  write_text(session_ / "ground_truth" / "t.txt", "truth\n");
+  EXPECT_EQ(run(oracle).ran, (std::vector<std::string>{"copy", "sum"}));
+  EXPECT_EQ(run().ran, (std::vector<std::string>{"copy", "sum"}));
+  EXPECT_EQ(reason_of("copy"), "oracle inputs switched off");
+  EXPECT_EQ(read_text(session_ / "b" / "args.log").find("--oracle"), std::string::npos);
+}
+
+TEST_F(DriverTest, OracleForAStageThatCannotTakeItIsAUsageError) {
+  RunRequest request;
+  request.oracle = {"make"};
+  EXPECT_THROW(run(request), UsageError);
+  request.oracle = {"copy"};
+  request.only = "sum";
+  EXPECT_THROW(run(request), UsageError);  // copy is not part of this run
+}
+
+TEST_F(DriverTest, ForceOnlyAndFromSelectStages) {
+  run();
+  RunRequest force;
+  force.force = true;
+  EXPECT_EQ(run(force).ran.size(), 3u);
+  EXPECT_EQ(reason_of("make"), "forced");
+
+  RunRequest only;
+  only.only = "copy";
+  only.force = true;
+  EXPECT_EQ(run(only).ran, (std::vector<std::string>{"copy"}));
+  ASSERT_EQ(events_.size(), 2u);
+  EXPECT_EQ(events_[0].count, 1u);
+
+  // make is stale, but --from copy leaves it out; copy and sum are up to date (copy's forced
+  // rerun wrote the same bytes).
+  write_yaml("name: test\nfps: 25\nstages:\n  make: {gain: 5}\n  copy: {mode: fast}\n");
+  RunRequest from;
+  from.from = "copy";
+  RunResult result = run(from);
+  EXPECT_EQ(result.skipped, (std::vector<std::string>{"copy", "sum"}));
+  EXPECT_TRUE(result.ran.empty());
+  EXPECT_EQ(runs("make"), 2);
+
+  RunRequest both;
+  both.only = "copy";
+  both.from = "make";
+  EXPECT_THROW(run(both), UsageError);
+}
+
+TEST_F(DriverTest, UnknownStageNameListsTheAvailableStages) {
+  RunRequest request;
+  request.only = "segmnet";
+  try {
+    run(request);
+    FAIL() << "expected a UsageError";
+  } catch (const UsageError& e) {
+    std::string message = e.what();
+    EXPECT_NE(message.find("unknown stage 'segmnet'"), std::string::npos) << message;
+    EXPECT_NE(message.find("make, copy, sum"), std::string::npos) << message;
+    EXPECT_EQ(e.exit_code(), kExitUsage);
+  }
+  // A stage of the pipeline that is not built is named as such.
+  try {
+    find_stage(stages_, "align");
+    FAIL() << "expected a UsageError";
+  } catch (const UsageError& e) {
+    EXPECT_NE(std::string(e.what()).find("not built"), std::string::npos) << e.what();
+  }
+}
+
+TEST_F(DriverTest, NonexistentSessionIsAnInputError) {
+  EXPECT_THROW(run_pipeline(dir_ / "no_such_session", stages_, {}, nullptr), InputError);
+  EXPECT_THROW(session_status(dir_ / "no_such_session", stages_), InputError);
+}
+
+TEST_F(DriverTest, FailingStageStopsTheRunWithItsExitCodeAndLeavesNoRecord) {
+  run();
+  write_text(session_ / "raw" / "x.txt", "raw-3\n");
+  write_fake_stage(stages_[1].executable, stages_[1], 4);
+  RunResult result = run();
+  EXPECT_EQ(result.exit_code, 4);
+  EXPECT_EQ(result.failed_stage, "copy");
+  EXPECT_EQ(result.log_file, session_ / "logs" / "copy.log");
+  EXPECT_EQ(result.ran, (std::vector<std::string>{"make"}));
+  EXPECT_EQ(runs("sum"), 1);  // not started
+  // The earlier record of copy was removed before it ran: its outputs are not trusted.
+  EXPECT_FALSE(fs::exists(session_ / "b" / kRecordFile));
+  EXPECT_EQ(events_.back().kind, StageEvent::Kind::kFailed);
+
+  auto status = session_status(session_, stages_);
+  ASSERT_EQ(status.size(), 3u);
+  EXPECT_EQ(status[0].state, StageStatus::State::kDone);
+  EXPECT_EQ(status[1].state, StageStatus::State::kIncomplete);
+  EXPECT_EQ(status[2].state, StageStatus::State::kChanged);  // its inputs a/ changed
+}
+
+TEST_F(DriverTest, StatusReportsDoneChangedAndNotRun) {
+  auto before = session_status(session_, stages_);
+  for (const auto& s : before) EXPECT_EQ(s.state, StageStatus::State::kNotRun) << s.stage;
+  run();
+  auto after = session_status(session_, stages_);
+  for (const auto& s : after) {
+    EXPECT_EQ(s.state, StageStatus::State::kDone) << s.stage << ": " << s.detail;
+    ASSERT_TRUE(s.record);
+    EXPECT_FALSE(s.record->finished.empty());
+    EXPECT_GT(s.output_bytes, 0u);
+  }
+  write_yaml("name: test\nfps: 25\nstages:\n  make: {gain: 2}\n  copy: {mode: fast}\n");
+  auto changed = session_status(session_, stages_);
+  EXPECT_EQ(changed[0].state, StageStatus::State::kChanged);
+  EXPECT_EQ(changed[0].detail, "options changed (session.yaml)");
+  // copy itself is unchanged, but make will rerun before it.
+  EXPECT_EQ(changed[1].state, StageStatus::State::kChanged);
+  EXPECT_EQ(changed[1].detail, "upstream stage make will rerun");
+}
+
+class SynthDriverTest : public DriverTest {
+ protected:
+  void SetUp() override {
+    DriverTest::SetUp();
+    stages_ = {stage_table()[0], stage_table()[1]};  // synth, segment
+    for (auto& s : stages_) {
+      s.executable = bin_ / ("fourd-" + s.name);
+      write_fake_stage(s.executable, s);
+    }
+  }
+};
+
+TEST_F(SynthDriverTest, SynthRunsOnlyWhenSessionYamlHasASynthSection) {
+  write_yaml("name: real\nstages:\n  segment: {}\n");
+  write_text(session_ / "capture" / "walk" / "cam00" / "000000.txt", "real frame\n");
+  RunResult result = run();
+  EXPECT_EQ(result.ran, (std::vector<std::string>{"segment"}));
+  EXPECT_EQ(read_text(session_ / "capture" / "walk" / "cam00" / "000000.txt"), "real frame\n");
+  RunRequest only;
+  only.only = "synth";
+  EXPECT_THROW(run(only), UsageError);
+  auto status = session_status(session_, stages_);
+  EXPECT_EQ(status[0].state, StageStatus::State::kNotUsed);
+
+  // A synth section over a capture synth did not make (no ground_truth/) is refused.
+  write_yaml("name: real\nstages:\n  segment: {}\n  synth: {seed: 2}\n");
+  EXPECT_THROW(run(), InputError);
+  EXPECT_EQ(read_text(session_ / "capture" / "walk" / "cam00" / "000000.txt"), "real frame\n");
+}
+
+TEST_F(SynthDriverTest, SyntheticSessionRunsSynthFirst) {
+  write_yaml("name: synthetic\nstages:\n  synth: {seed: 1}\n");
+  EXPECT_EQ(run().ran, (std::vector<std::string>{"synth", "segment"}));
+  EXPECT_TRUE(fs::exists(session_ / "capture" / kRecordFile));
+  EXPECT_TRUE(run().ran.empty());
+  write_yaml("name: synthetic\nstages:\n  synth: {seed: 2}\n");
+  EXPECT_EQ(run().ran, (std::vector<std::string>{"synth", "segment"}));
+}
+
+// The `fourd` executable itself, when it is built: exit codes of the command line.
+int run_command(const std::string& command) {
+  int status = std::system((command + " >/dev/null 2>&1").c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+TEST_F(DriverTest, FourdExecutableExitCodes) {
+  fs::path fourd = fs::path(FOURD_BIN_DIR) / "fourd";
+  if (!fs::exists(fourd)) GTEST_SKIP() << "fourd is not built";
+  EXPECT_EQ(run_command(fourd.string() + " run " + (dir_ / "missing").string()), kExitInput);
+  EXPECT_EQ(run_command(fourd.string() + " run " + session_.string() + " --only nosuchstage"),
+            kExitUsage);
+  EXPECT_EQ(run_command(fourd.string() + " --help"), kExitOk);
+  EXPECT_EQ(run_command(fourd.string()), kExitUsage);
+  EXPECT_EQ(run_command(fourd.string() + " status " + session_.string()), kExitOk);
+}
+
+}  // namespace
+}  // namespace fourd::driver

@@ -1,0 +1,163 @@
+// The runtime's linear and hybrid blend (runtime/blend.h) on hand-made spaces.
+#include "runtime/blend.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <numbers>
+#include <vector>
+
+#include "pipeline/core/error.h"
+#include "tests/motionspace/test_meshes.h"
+
+namespace fourd {
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180;
+
+// Frame f of input k: the tube bent by a pose that depends on both.
+Eigen::Matrix3Xd pose(const test::TestMesh& m, int k, int f) {
+  return test::bend_tube(m.positions, (20.0 + 40 * k + 7 * f) * kDeg, {}, 50.0 * k * kDeg);
+}
+
+BlendSpace make_space(const test::TestMesh& m, int inputs, int frames) {
+  BlendSpace space = make_blend_space(inputs, static_cast<int>(m.positions.cols()), frames);
+  for (int k = 0; k < inputs; ++k) {
+    for (int f = 0; f < frames; ++f) set_frame(&space, k, f, test::to_vec3f(pose(m, k, f)));
+  }
+  return space;
+}
+
+Eigen::Matrix3Xd to_matrix(const BlendedFrame& frame) {
+  Eigen::Matrix3Xd x(3, frame.num_vertices);
+  for (int v = 0; v < frame.num_vertices; ++v) x.col(v) = frame.position(v).cast<double>();
+  return x;
+}
+
+TEST(Blend, LayoutIsPaddedAndAligned) {
+  EXPECT_EQ(blend_plane_stride(1), 16);
+  EXPECT_EQ(blend_plane_stride(16), 16);
+  EXPECT_EQ(blend_plane_stride(3001), 3008);
+  const test::TestMesh m = test::make_tube(9, 7);  // 65 vertices
+  const BlendSpace space = make_space(m, 3, 4);
+  EXPECT_EQ(space.plane_stride, 80);
+  EXPECT_EQ(reinterpret_cast<std::uintptr_t>(space.frame(2, 3)) % 64, 0u);
+  EXPECT_EQ(reinterpret_cast<std::uintptr_t>(make_blended_frame(space).data.data()) % 64, 0u);
+  EXPECT_NO_THROW(space.check());
+}
+
+TEST(Blend, LinearBlendOfIdenticalInputsIsExact) {
+  const test::TestMesh m = test::make_tube(9, 7);
+  BlendSpace space = make_blend_space(3, static_cast<int>(m.positions.cols()), 1);
+  const std::vector<Vec3f> p = test::to_vec3f(pose(m, 1, 0));
+  for (int k = 0; k < 3; ++k) set_frame(&space, k, 0, p);
+  BlendedFrame out = make_blended_frame(space);
+  const std::vector<float> w{1.f / 3, 1.f / 3, 1.f / 3};
+  blend_linear(space, 0.0, w, &out);
+  for (int v = 0; v < out.num_vertices; ++v) EXPECT_LT((out.position(v) - p[v]).norm(), 1e-6f);
+  blend_hybrid(space, 0.0, w, &out);  // no references: the hybrid is the linear blend
+  for (int v = 0; v < out.num_vertices; ++v) EXPECT_LT((out.position(v) - p[v]).norm(), 1e-6f);
+}
+
+TEST(Blend, LinearBlendIsTheNormalisedWeightedSumAtContinuousTime) {
+  const test::TestMesh m = test::make_tube(9, 7);
+  const int frames = 5;
+  const BlendSpace space = make_space(m, 3, frames);
+  BlendedFrame out = make_blended_frame(space);
+  const std::vector<float> w{2.f, 1.f, 1.f};  // sums to 4: normalised to (0.5, 0.25, 0.25)
+  const double t = 0.6;                       // frame position 2.4: frames 2 and 3
+  blend_linear(space, t, w, &out);
+  Eigen::Matrix3Xd expected = Eigen::Matrix3Xd::Zero(3, m.positions.cols());
+  for (int k = 0; k < 3; ++k) {
+    expected += w[k] / 4 * (0.6 * pose(m, k, 2) + 0.4 * pose(m, k, 3));
+  }
+  EXPECT_LT(test::max_vertex_distance(to_matrix(out), expected), 1e-5);
+
+  // Time is clamped to [0, 1] and the last frame is reached exactly at t = 1.
+  blend_linear(space, 1.0, std::vector<float>{0, 1, 0}, &out);
+  EXPECT_LT(test::max_vertex_distance(to_matrix(out), pose(m, 1, frames - 1)), 1e-5);
+  blend_linear(space, 7.0, std::vector<float>{0, 1, 0}, &out);
+  EXPECT_LT(test::max_vertex_distance(to_matrix(out), pose(m, 1, frames - 1)), 1e-5);
+  blend_linear(space, -1.0, std::vector<float>{0, 0, 1}, &out);
+  EXPECT_LT(test::max_vertex_distance(to_matrix(out), pose(m, 2, 0)), 1e-5);
+}
+
+TEST(Blend, SourcesSkipZeroCoefficients) {
+  const test::TestMesh m = test::make_tube(9, 7);
+  const BlendSpace space = make_space(m, 3, 4);
+  BlendSources s;
+  linear_blend_sources(space, 0.5, std::vector<float>{0.2f, 0.8f, 0.f}, &s);
+  EXPECT_EQ(s.count, 4);  // two inputs at frames 1 and 2
+  linear_blend_sources(space, 1.0 / 3, std::vector<float>{0.2f, 0.8f, 0.f}, &s);  // frame 1 exactly
+  EXPECT_EQ(s.count, 2);
+  EXPECT_EQ(s.sources[0], space.frame(0, 1));
+  hybrid_blend_sources(space, 0.0, std::vector<float>{1.f, 0.f, 0.f}, &s);
+  EXPECT_EQ(s.count, 1);
+  EXPECT_EQ(s.sources[0], space.frame(0, 0));
+  EXPECT_FLOAT_EQ(s.coefficients[0], 1.f);
+}
+
+// A hand-made hybrid space over 3 inputs: one reference at the centre of the weight triangle
+// splitting it into three cells. The blend must reproduce the reference there, and stay
+// continuous across the cell edges.
+TEST(Blend, HybridInterpolatesReferencesAndIsContinuous) {
+  const test::TestMesh m = test::make_tube(9, 7);
+  BlendSpace space = make_space(m, 3, 2);
+  const std::vector<double> centre{1.0 / 3, 1.0 / 3, 1.0 / 3};
+  const int r = add_reference(&space, centre);
+  // A reference shape far from the linear blend, so that interpolation errors would show.
+  const Eigen::Matrix3Xd special = test::bend_tube(m.positions, -90 * kDeg);
+  for (int f = 0; f < 2; ++f) set_frame(&space, r, f, test::to_vec3f(special));
+  space.cells = {{r, 0, 1}, {r, 1, 2}, {r, 2, 0}};
+  ASSERT_NO_THROW(space.check());
+
+  BlendedFrame out = make_blended_frame(space);
+  blend_hybrid(space, 0.3, std::vector<float>{1, 1, 1}, &out);
+  EXPECT_LT(test::max_vertex_distance(to_matrix(out), special), 1e-5);
+  // At an input the hybrid is that input.
+  blend_hybrid(space, 1.0, std::vector<float>{0, 0, 1}, &out);
+  EXPECT_LT(test::max_vertex_distance(to_matrix(out), pose(m, 2, 1)), 1e-5);
+  // Half way between the centre and input 0: the mean of the two.
+  blend_hybrid(space, 0.0, std::vector<float>{4, 1, 1}, &out);  // = 0.5 e0 + 0.5 centre
+  EXPECT_LT(test::max_vertex_distance(to_matrix(out), 0.5 * (pose(m, 0, 0) + special)), 1e-5);
+
+  // Across the edge between cells {r,0,1} and {r,1,2} (the segment centre - input 1).
+  const float d = 1e-4f;
+  BlendedFrame other = make_blended_frame(space);
+  blend_hybrid(space, 0.5, std::vector<float>{0.25f + d, 0.5f, 0.25f - d}, &out);
+  blend_hybrid(space, 0.5, std::vector<float>{0.25f - d, 0.5f, 0.25f + d}, &other);
+  EXPECT_LT(test::max_vertex_distance(to_matrix(out), to_matrix(other)), 1e-3);
+
+  // Two inputs: cells are segments of the weight line.
+  BlendSpace line = make_space(m, 2, 2);
+  const int mid = add_reference(&line, std::vector<double>{0.5, 0.5});
+  for (int f = 0; f < 2; ++f) set_frame(&line, mid, f, test::to_vec3f(special));
+  line.cells = {{0, mid, -1}, {mid, 1, -1}};
+  ASSERT_NO_THROW(line.check());
+  BlendedFrame out2 = make_blended_frame(line);
+  blend_hybrid(line, 0.0, std::vector<float>{0.25f, 0.75f}, &out2);
+  EXPECT_LT(test::max_vertex_distance(to_matrix(out2), 0.5 * (special + pose(m, 1, 0))), 1e-5);
+}
+
+TEST(Blend, CheckRejectsMalformedSpaces) {
+  const test::TestMesh m = test::make_tube(9, 7);
+  BlendSpace space = make_space(m, 3, 2);
+  BlendSpace bad = space;
+  bad.cells = {{0, 1, -1}};
+  EXPECT_THROW(bad.check(), InputError);
+  bad = space;
+  const int r = add_reference(&bad, std::vector<double>{0.5, 0.5, 0.0});
+  bad.cells = {{r, 0, 2}};  // covers only half the weight triangle
+  EXPECT_THROW(bad.check(), InputError);
+  bad = space;
+  bad.reference_weights[0] = 0.5;  // input 0 must sit at e_0
+  EXPECT_THROW(bad.check(), InputError);
+  bad = space;
+  bad.frames.pop_back();
+  EXPECT_THROW(bad.check(), InputError);
+  EXPECT_THROW(make_blend_space(4, 10, 2), InputError);
+  EXPECT_THROW(set_frame(&space, 0, 0, std::vector<Vec3f>(3)), InputError);
+}
+
+}  // namespace
+}  // namespace fourd

@@ -1,0 +1,248 @@
+// Hybrid non-linear blending end to end: offline bisection (stages/motionspace/hybrid_build.h)
+// and the runtime evaluation (runtime/blend.h) against the non-linear blend.
+#include "stages/motionspace/hybrid_build.h"
+
+#include <gtest/gtest.h>
+
+#include <map>
+#include <numbers>
+#include <set>
+#include <vector>
+
+#include "pipeline/core/error.h"
+#include "stages/motionspace/nonlinear_blend.h"
+#include "tests/motionspace/test_meshes.h"
+
+namespace fourd {
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180;
+constexpr int kFrames = 3;
+
+// Time-aligned sequences of an elbow: input 0 almost straight; with 2 inputs, input 1 bent by
+// about 120 degrees in the same plane; with 3 inputs (a 2D weight space needs many more cells
+// for the same error), input 1 bent by about 60 degrees and input 2 by about 40 degrees in a
+// plane turned 90 degrees.
+struct Sequences {
+  test::TestMesh rest;
+  std::vector<std::vector<Eigen::Matrix3Xd>> frames;  // [input][frame]
+};
+
+Sequences elbow_sequences(int inputs) {
+  Sequences s;
+  s.rest = test::make_tube(17, 12);
+  s.frames.resize(inputs);
+  for (int f = 0; f < kFrames; ++f) {
+    s.frames[0].push_back(test::bend_tube(s.rest.positions, (5.0 * f) * kDeg));
+    s.frames[1].push_back(
+        test::bend_tube(s.rest.positions, ((inputs == 2 ? 120.0 : 60.0) - 10 * f) * kDeg));
+    if (inputs > 2)
+      s.frames[2].push_back(
+          test::bend_tube(s.rest.positions, (40.0 + 5 * f) * kDeg, {}, 90 * kDeg));
+  }
+  return s;
+}
+
+BlendSpace space_of(const Sequences& s) {
+  const int n = static_cast<int>(s.frames.size());
+  BlendSpace space = make_blend_space(n, static_cast<int>(s.rest.positions.cols()), kFrames);
+  for (int k = 0; k < n; ++k) {
+    for (int f = 0; f < kFrames; ++f) set_frame(&space, k, f, test::to_vec3f(s.frames[k][f]));
+  }
+  return space;
+}
+
+Eigen::Matrix3Xd evaluate(const BlendSpace& space, int f, std::span<const double> w, bool hybrid) {
+  BlendedFrame out = make_blended_frame(space);
+  const std::vector<float> wf(w.begin(), w.end());
+  const double t = space.num_frames > 1 ? static_cast<double>(f) / (space.num_frames - 1) : 0.0;
+  if (hybrid) {
+    blend_hybrid(space, t, wf, &out);
+  } else {
+    blend_linear(space, t, wf, &out);
+  }
+  Eigen::Matrix3Xd x(3, out.num_vertices);
+  for (int v = 0; v < out.num_vertices; ++v) x.col(v) = out.position(v).cast<double>();
+  return x;
+}
+
+// Non-linear blends of every frame, for the weights asked.
+class NonlinearOracle {
+ public:
+  explicit NonlinearOracle(const Sequences& s) : s_(s) {
+    nonlinear_blend_precompute(s.rest.positions, s.rest.triangles, &data_);
+    for (int f = 0; f < kFrames; ++f) {
+      std::vector<Eigen::Matrix3Xd> inputs;
+      for (const auto& seq : s.frames) inputs.push_back(seq[f]);
+      nonlinear_blend_prepare(data_, inputs, &prepared_[f]);
+    }
+  }
+  Eigen::Matrix3Xd blend(int f, std::span<const double> w) const {
+    Eigen::Matrix3Xd x;
+    nonlinear_blend_solve(data_, prepared_[f], w, &x);
+    return x;
+  }
+
+ private:
+  const Sequences& s_;
+  NonlinearBlendData data_;
+  NonlinearBlendInputs prepared_[kFrames];
+};
+
+// Weights of cell corners mixed by g.
+std::vector<double> mix(const BlendSpace& space, const std::array<int, 3>& cell,
+                        const std::array<double, 3>& g) {
+  const int n = space.num_inputs;
+  std::vector<double> w(n, 0.0);
+  for (int k = 0; k < n; ++k) {
+    for (int i = 0; i < n; ++i) w[i] += g[k] * space.reference_weights[cell[k] * n + i];
+  }
+  return w;
+}
+
+class HybridBuild : public ::testing::TestWithParam<int> {};  // number of inputs
+
+TEST_P(HybridBuild, EqualsNonlinearAtEveryReferenceAndMeetsEpsilon) {
+  const int n = GetParam();
+  const Sequences s = elbow_sequences(n);
+  BlendSpace space = space_of(s);
+  HybridBuildOptions options;
+  options.epsilon = 0.005;
+  const HybridBuildReport report =
+      build_hybrid_references(options, s.rest.positions, s.rest.triangles, &space);
+  ASSERT_NO_THROW(space.check());
+  EXPECT_TRUE(report.converged);
+  EXPECT_GT(report.references_added, 0);
+  EXPECT_LE(report.max_error, options.epsilon);
+  EXPECT_GT(report.linear_max_error, options.epsilon);  // the test is not trivial
+  EXPECT_EQ(space.num_references(), n + report.references_added);
+  EXPECT_EQ(static_cast<int>(space.cells.size()), report.cells);
+
+  const NonlinearOracle oracle(s);
+  // Exact at every reference (the inputs included), every frame.
+  for (int j = 0; j < space.num_references(); ++j) {
+    const std::span<const double> w(space.reference_weights.data() + j * n, n);
+    for (int f = 0; f < kFrames; ++f) {
+      EXPECT_LT(test::max_vertex_distance(evaluate(space, f, w, true), oracle.blend(f, w)), 1e-5)
+          << "reference " << j << " frame " << f;
+    }
+  }
+  // Below epsilon at the test weights of every cell, through the runtime's own cell lookup;
+  // and no worse than linear blending anywhere tested.
+  const std::vector<std::array<double, 3>> points =
+      n == 2 ? std::vector<std::array<double, 3>>{{0.75, 0.25, 0}, {0.5, 0.5, 0}, {0.25, 0.75, 0}}
+             : std::vector<std::array<double, 3>>{{0, 0.5, 0.5},
+                                                  {0.5, 0, 0.5},
+                                                  {0.5, 0.5, 0},
+                                                  {1.0 / 3, 1.0 / 3, 1.0 / 3},
+                                                  {0.6, 0.2, 0.2}};
+  double worst_hybrid = 0, worst_linear = 0;
+  for (const auto& cell : space.cells) {
+    for (const auto& g : points) {
+      const std::vector<double> w = mix(space, cell, g);
+      for (int f = 0; f < kFrames; ++f) {
+        const Eigen::Matrix3Xd nl = oracle.blend(f, w);
+        worst_hybrid =
+            std::max(worst_hybrid, test::max_vertex_distance(evaluate(space, f, w, true), nl));
+        worst_linear =
+            std::max(worst_linear, test::max_vertex_distance(evaluate(space, f, w, false), nl));
+      }
+    }
+  }
+  EXPECT_LT(worst_hybrid, options.epsilon);
+  EXPECT_LT(worst_hybrid, 0.5 * worst_linear);
+}
+
+TEST_P(HybridBuild, SmallerEpsilonAddsReferences) {
+  const int n = GetParam();
+  const Sequences s = elbow_sequences(n);
+  std::vector<int> added;
+  std::vector<double> errors;
+  for (double eps : {0.05, 0.01, n == 2 ? 0.002 : 0.005}) {
+    BlendSpace space = space_of(s);
+    HybridBuildOptions options;
+    options.epsilon = eps;
+    const HybridBuildReport report =
+        build_hybrid_references(options, s.rest.positions, s.rest.triangles, &space);
+    EXPECT_TRUE(report.converged) << "epsilon " << eps;
+    EXPECT_LE(report.max_error, eps);
+    added.push_back(report.references_added);
+    errors.push_back(report.max_error);
+  }
+  EXPECT_LE(added[0], added[1]);
+  EXPECT_LT(added[1], added[2]);
+  EXPECT_GT(errors[0], errors[2]);
+}
+
+INSTANTIATE_TEST_SUITE_P(Inputs, HybridBuild, ::testing::Values(2, 3));
+
+// Newest-vertex bisection keeps the weight triangles edge to edge: every cell edge is either
+// on the simplex boundary or shared by exactly two cells, and no reference lies inside an edge.
+TEST(HybridBuild, TriangleCellsAreConforming) {
+  const Sequences s = elbow_sequences(3);
+  BlendSpace space = space_of(s);
+  HybridBuildOptions options;
+  options.epsilon = 0.001;
+  build_hybrid_references(options, s.rest.positions, s.rest.triangles, &space);
+  ASSERT_GT(space.cells.size(), 4u);
+  std::map<std::pair<int, int>, int> edge_count;
+  for (const auto& c : space.cells) {
+    for (int k = 0; k < 3; ++k) ++edge_count[std::minmax(c[k], c[(k + 1) % 3])];
+  }
+  auto w = [&](int r) { return Eigen::Vector3d(space.reference_weights.data() + 3 * r); };
+  for (const auto& [edge, count] : edge_count) {
+    const Eigen::Vector3d a = w(edge.first), b = w(edge.second);
+    const bool on_boundary = ((a + b).array() == 0).any();  // both on one side of the simplex
+    EXPECT_EQ(count, on_boundary ? 1 : 2) << edge.first << "-" << edge.second;
+    for (int r = 0; r < space.num_references(); ++r) {
+      if (r == edge.first || r == edge.second) continue;
+      const Eigen::Vector3d p = w(r);
+      const double along = (p - a).dot(b - a) / (b - a).squaredNorm();
+      const bool inside =
+          along > 1e-9 && along < 1 - 1e-9 && (a + along * (b - a) - p).norm() < 1e-12;
+      EXPECT_FALSE(inside) << "reference " << r << " hangs on edge " << edge.first << "-"
+                           << edge.second;
+    }
+  }
+}
+
+TEST(HybridBuild, LimitsStopTheBisection) {
+  const Sequences s = elbow_sequences(2);
+  BlendSpace space = space_of(s);
+  HybridBuildOptions options;
+  options.epsilon = 1e-6;
+  options.max_references = 2;
+  const HybridBuildReport report =
+      build_hybrid_references(options, s.rest.positions, s.rest.triangles, &space);
+  EXPECT_FALSE(report.converged);
+  EXPECT_EQ(report.references_added, 2);
+  EXPECT_GT(report.max_error, options.epsilon);
+
+  BlendSpace shallow = space_of(s);
+  options.max_references = 100;
+  options.max_depth = 1;
+  const HybridBuildReport r1 =
+      build_hybrid_references(options, s.rest.positions, s.rest.triangles, &shallow);
+  EXPECT_EQ(r1.references_added, 1);
+  EXPECT_EQ(r1.max_depth, 1);
+}
+
+TEST(HybridBuild, RejectsNonPositiveEpsilonAndUsedSpaces) {
+  const Sequences s = elbow_sequences(2);
+  BlendSpace space = space_of(s);
+  for (double eps : {0.0, -0.005}) {
+    HybridBuildOptions options;
+    options.epsilon = eps;
+    EXPECT_THROW(options.check(), ConfigError);
+    EXPECT_THROW(build_hybrid_references(options, s.rest.positions, s.rest.triangles, &space),
+                 ConfigError);
+  }
+  HybridBuildOptions options;
+  build_hybrid_references(options, s.rest.positions, s.rest.triangles, &space);
+  // A space that already has references cannot be built again.
+  EXPECT_THROW(build_hybrid_references(options, s.rest.positions, s.rest.triangles, &space),
+               InputError);
+}
+
+}  // namespace
+}  // namespace fourd
