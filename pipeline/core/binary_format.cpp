@@ -104,8 +104,8 @@ BinaryReader BinaryReader::open(const std::filesystem::path& path, const FileMag
 
 void BinaryReader::expect_end() const {
   if (!at_end()) {
-    throw InputError(fmt::format("{}: {} unread bytes at the end of the payload", path_.string(),
-                                 remaining()));
+    throw InputError(
+        fmt::format("{}: {} unread bytes at the end of the payload", path_.string(), remaining()));
   }
 }
 

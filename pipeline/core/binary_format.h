@@ -61,9 +61,10 @@ inline constexpr bool kIsBlittable =
 template <class T>
 struct IsDynamicEigen : std::false_type {};
 template <class S, int R, int C, int O, int MR, int MC>
-struct IsDynamicEigen<Eigen::Matrix<S, R, C, O, MR, MC>>
-    : std::bool_constant<(R == Eigen::Dynamic || C == Eigen::Dynamic) &&
-                         std::is_arithmetic_v<S>> {};
+struct IsDynamicEigen<Eigen::Matrix<S, R, C, O, MR, MC>> {
+  static constexpr bool value =
+      std::is_arithmetic_v<S> && (R == Eigen::Dynamic || C == Eigen::Dynamic);
+};
 
 }  // namespace binary_detail
 
@@ -104,8 +105,7 @@ class BinaryWriter {
   void reserve(std::size_t bytes) { payload_.reserve(bytes); }
 
   // Header + payload, atomically. Throws IoError when the file cannot be written.
-  void save(const std::filesystem::path& path, const FileMagic& magic,
-            std::uint32_t version) const;
+  void save(const std::filesystem::path& path, const FileMagic& magic, std::uint32_t version) const;
 
  private:
   std::string payload_;
@@ -122,9 +122,9 @@ class BinaryReader {
                            std::span<const std::uint32_t> supported_versions);
   static BinaryReader open(const std::filesystem::path& path, const FileMagic& magic,
                            std::initializer_list<std::uint32_t> supported_versions) {
-    return open(path, magic,
-                std::span<const std::uint32_t>(supported_versions.begin(),
-                                               supported_versions.size()));
+    return open(
+        path, magic,
+        std::span<const std::uint32_t>(supported_versions.begin(), supported_versions.size()));
   }
 
   std::uint32_t version() const { return version_; }

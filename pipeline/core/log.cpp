@@ -65,11 +65,7 @@ Progress::Progress(std::string label, std::size_t total, double interval_seconds
       start_(std::chrono::steady_clock::now()),
       last_print_(start_) {}
 
-Progress::~Progress() {
-  if (!finished_ && done_ > 0) {
-    info("{} [{}/{}] done in {:.1f} s", label_, done_, total_, elapsed_seconds());
-  }
-}
+Progress::~Progress() = default;
 
 double Progress::elapsed_seconds() const {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();

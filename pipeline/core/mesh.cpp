@@ -1,8 +1,8 @@
 #include "pipeline/core/mesh.h"
 
-#include <Eigen/Geometry>
 #include <fmt/format.h>
 
+#include <Eigen/Geometry>
 #include <limits>
 
 #include "pipeline/core/error.h"
@@ -25,8 +25,8 @@ void check_indices(const std::string& what, const char* name, const std::vector<
     for (int k = 0; k < 3; ++k) {
       int i = tris[f][k];
       if (i < 0 || static_cast<std::size_t>(i) >= count) {
-        throw InputError(fmt::format("{}: {} {} refers to index {} of {}", what, name, f, i,
-                                     count));
+        throw InputError(
+            fmt::format("{}: {} {} refers to index {} of {}", what, name, f, i, count));
       }
     }
   }

@@ -83,7 +83,16 @@ std::string lower_extension(const fs::path& path) {
 // ---------------------------------------------------------------------------------------------
 // PLY header.
 
-enum class PlyType : std::uint8_t { kInt8, kUint8, kInt16, kUint16, kInt32, kUint32, kFloat32, kFloat64 };
+enum class PlyType : std::uint8_t {
+  kInt8,
+  kUint8,
+  kInt16,
+  kUint16,
+  kInt32,
+  kUint32,
+  kFloat32,
+  kFloat64
+};
 
 std::optional<PlyType> parse_ply_type(std::string_view name) {
   if (name == "char" || name == "int8") return PlyType::kInt8;
@@ -100,13 +109,17 @@ std::optional<PlyType> parse_ply_type(std::string_view name) {
 std::size_t ply_type_size(PlyType type) {
   switch (type) {
     case PlyType::kInt8:
-    case PlyType::kUint8: return 1;
+    case PlyType::kUint8:
+      return 1;
     case PlyType::kInt16:
-    case PlyType::kUint16: return 2;
+    case PlyType::kUint16:
+      return 2;
     case PlyType::kInt32:
     case PlyType::kUint32:
-    case PlyType::kFloat32: return 4;
-    case PlyType::kFloat64: return 8;
+    case PlyType::kFloat32:
+      return 4;
+    case PlyType::kFloat64:
+      return 8;
   }
   return 0;
 }
@@ -128,7 +141,9 @@ struct PlyElement {
   // Index of the scalar (or list) property called `name`, -1 when absent.
   int find(std::string_view property, bool list = false) const {
     for (std::size_t i = 0; i < properties.size(); ++i) {
-      if (properties[i].name == property && properties[i].is_list == list) return static_cast<int>(i);
+      if (properties[i].name == property && properties[i].is_list == list) {
+        return static_cast<int>(i);
+      }
     }
     return -1;
   }
@@ -139,8 +154,8 @@ enum class PlyEncoding { kAscii, kBinaryLittleEndian, kBinaryBigEndian };
 struct PlyHeader {
   PlyEncoding encoding = PlyEncoding::kAscii;
   std::vector<PlyElement> elements;
-  std::string texture;            // from MeshLab's "comment TextureFile <name>"
-  std::size_t data_offset = 0;    // first byte after the end_header line
+  std::string texture;              // from MeshLab's "comment TextureFile <name>"
+  std::size_t data_offset = 0;      // first byte after the end_header line
   std::size_t data_first_line = 0;  // line number of the first data line (ASCII)
 };
 
@@ -236,14 +251,22 @@ T load_scalar(const char* p, bool swap) {
 
 double decode_scalar(const char* p, PlyType type, bool swap) {
   switch (type) {
-    case PlyType::kInt8: return load_scalar<std::int8_t>(p, swap);
-    case PlyType::kUint8: return load_scalar<std::uint8_t>(p, swap);
-    case PlyType::kInt16: return load_scalar<std::int16_t>(p, swap);
-    case PlyType::kUint16: return load_scalar<std::uint16_t>(p, swap);
-    case PlyType::kInt32: return load_scalar<std::int32_t>(p, swap);
-    case PlyType::kUint32: return load_scalar<std::uint32_t>(p, swap);
-    case PlyType::kFloat32: return load_scalar<float>(p, swap);
-    case PlyType::kFloat64: return load_scalar<double>(p, swap);
+    case PlyType::kInt8:
+      return load_scalar<std::int8_t>(p, swap);
+    case PlyType::kUint8:
+      return load_scalar<std::uint8_t>(p, swap);
+    case PlyType::kInt16:
+      return load_scalar<std::int16_t>(p, swap);
+    case PlyType::kUint16:
+      return load_scalar<std::uint16_t>(p, swap);
+    case PlyType::kInt32:
+      return load_scalar<std::int32_t>(p, swap);
+    case PlyType::kUint32:
+      return load_scalar<std::uint32_t>(p, swap);
+    case PlyType::kFloat32:
+      return load_scalar<float>(p, swap);
+    case PlyType::kFloat64:
+      return load_scalar<double>(p, swap);
   }
   return 0;
 }
@@ -524,8 +547,8 @@ void read_ply_faces(Source& source, const PlyElement& element, std::size_t num_v
           double index = source.scalar(property.type);
           if (index < 0 || index >= static_cast<double>(num_vertices) ||
               index != std::floor(index)) {
-            throw source.fail(fmt::format("vertex index {} out of range ({} vertices)", index,
-                                          num_vertices));
+            throw source.fail(
+                fmt::format("vertex index {} out of range ({} vertices)", index, num_vertices));
           }
           corner = static_cast<int>(index);
         }
@@ -544,8 +567,8 @@ void read_ply_faces(Source& source, const PlyElement& element, std::size_t num_v
     source.end();
     if (corners.size() < 3) throw source.fail(fmt::format("face with {} vertices", corners.size()));
     if (uv_property >= 0 && uvs.size() != corners.size()) {
-      throw source.fail(fmt::format("{} texture coordinates for {} corners", uvs.size(),
-                                    corners.size()));
+      throw source.fail(
+          fmt::format("{} texture coordinates for {} corners", uvs.size(), corners.size()));
     }
     const int uv_base = static_cast<int>(corner_uvs.uvs.size());
     for (std::size_t k = 1; k + 1 < corners.size(); ++k) {
@@ -755,7 +778,9 @@ std::string read_mtl_texture(const fs::path& obj_dir, std::string_view mtllib,
       if (name.empty()) return "";
       fs::path texture(name);
       if (texture.is_absolute()) return texture.generic_string();
-      return (fs::path(std::string(mtllib)).parent_path() / texture).lexically_normal().generic_string();
+      return (fs::path(std::string(mtllib)).parent_path() / texture)
+          .lexically_normal()
+          .generic_string();
     }
   }
   return "";
@@ -769,7 +794,7 @@ struct ObjData {
   std::vector<Vec3f> normals;
   std::vector<ObjCorner> corners;  // 3 per triangle
   std::vector<std::string> mtllibs;
-  std::string first_material;      // the first material a face uses
+  std::string first_material;  // the first material a face uses
 };
 
 // Reads up to `max` numbers from the rest of a line into `out`; returns how many.
@@ -796,12 +821,13 @@ ObjData parse_obj(std::string_view text, const std::string& file) {
   std::vector<ObjCorner> face;
   float numbers[7];
   while (lines.next(&line)) {
-    if (std::size_t hash = line.find('#'); hash != std::string_view::npos) line = line.substr(0, hash);
+    line = line.substr(0, line.find('#'));
     std::string_view rest = line;
     std::string_view keyword = next_token(rest);
     if (keyword == "v") {
       int n = parse_numbers(rest, numbers, 7, fail);
-      if (n != 3 && n != 4 && n != 6 && n != 7) throw fail("a vertex needs x y z [w] or x y z r g b");
+      if (n != 3 && n != 4 && n != 6 && n != 7)
+        throw fail("a vertex needs x y z [w] or x y z r g b");
       obj.positions.emplace_back(numbers[0], numbers[1], numbers[2]);
       if (n >= 6) {
         // Vertex colours ("v x y z r g b", 0..1), the MeshLab/Blender extension.
@@ -828,9 +854,11 @@ ObjData parse_obj(std::string_view text, const std::string& file) {
           std::string_view tail = token.substr(slash1 + 1);
           std::size_t slash2 = tail.find('/');
           std::string_view vt = tail.substr(0, slash2);
-          if (!vt.empty()) corner.vt = resolve_obj_index(vt, obj.uvs.size(), "texture coordinate", fail);
+          if (!vt.empty())
+            corner.vt = resolve_obj_index(vt, obj.uvs.size(), "texture coordinate", fail);
           if (slash2 != std::string_view::npos) {
-            corner.vn = resolve_obj_index(tail.substr(slash2 + 1), obj.normals.size(), "normal", fail);
+            corner.vn =
+                resolve_obj_index(tail.substr(slash2 + 1), obj.normals.size(), "normal", fail);
           }
         }
         face.push_back(corner);
@@ -887,9 +915,9 @@ Mesh mesh_from_obj(ObjData obj, const fs::path& path) {
       }
     }
   }
-  const bool has_vn = !obj.corners.empty() &&
-                      std::all_of(obj.corners.begin(), obj.corners.end(),
-                                  [](const ObjCorner& c) { return c.vn >= 0; });
+  const bool has_vn =
+      !obj.corners.empty() && std::all_of(obj.corners.begin(), obj.corners.end(),
+                                          [](const ObjCorner& c) { return c.vn >= 0; });
   if (has_vn) {
     if (corners_match_vertices(obj.corners, &ObjCorner::vn, obj.normals.size(), nv)) {
       mesh.normals = std::move(obj.normals);
@@ -1019,14 +1047,16 @@ Mesh read_mesh(const fs::path& path) {
   const std::string ext = lower_extension(path);
   if (ext == ".ply") return read_ply(path);
   if (ext == ".obj") return read_obj(path);
-  throw InputError(fmt::format("{}: unknown mesh file type (expected .ply or .obj)", path.string()));
+  throw InputError(
+      fmt::format("{}: unknown mesh file type (expected .ply or .obj)", path.string()));
 }
 
 void write_mesh(const fs::path& path, const Mesh& mesh) {
   const std::string ext = lower_extension(path);
   if (ext == ".ply") return write_ply(path, mesh);
   if (ext == ".obj") return write_obj(path, mesh);
-  throw InputError(fmt::format("{}: unknown mesh file type (expected .ply or .obj)", path.string()));
+  throw InputError(
+      fmt::format("{}: unknown mesh file type (expected .ply or .obj)", path.string()));
 }
 
 }  // namespace fourd

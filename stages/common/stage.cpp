@@ -34,6 +34,16 @@ FrameSelection parse_frames(const std::string& take, const std::string& range) {
 
 }  // namespace
 
+std::filesystem::path stage_input_dir(const Session& session, const StageArgs& args,
+                                      const std::string& input_stage) {
+  return args.oracle ? session.dir("oracle") / input_stage : session.dir(input_stage);
+}
+
+std::filesystem::path stage_output_dir(const Session& session, const StageArgs& args,
+                                       const std::string& stage) {
+  return session.dir(args.oracle ? stage + "_oracle" : stage);
+}
+
 int run_stage_main(int argc, char** argv, const StageInfo& info,
                    const std::function<void(CLI::App&)>& add_options,
                    const std::function<void(const Session&, const StageArgs&)>& body) {
@@ -48,8 +58,9 @@ int run_stage_main(int argc, char** argv, const StageInfo& info,
     app.add_option("--frames", frames, "process only frames FIRST:LAST (inclusive)");
   }
   if (info.supports_oracle) {
-    app.add_option("--oracle", args.oracle,
-                   "validation only: read ground-truth inputs instead of the previous stage's");
+    app.add_flag("--oracle", args.oracle,
+                 "validation only: read inputs derived from ground truth (oracle/) instead of the "
+                 "previous stage's, and write to <stage>_oracle/");
   }
   if (add_options) add_options(app);
   try {
@@ -66,7 +77,8 @@ int run_stage_main(int argc, char** argv, const StageInfo& info,
   try {
     args.selection = parse_frames(take, frames);
     Session session = Session::open(args.session_dir);
-    log::open_file(session.logs_dir() / (std::string(info.name) + ".log"));
+    log::open_file(session.logs_dir() /
+                   (std::string(info.name) + (args.oracle ? "_oracle" : "") + ".log"));
     log::info("fourd-{} on {}", info.name, session.root().string());
     log::Timer timer;
     body(session, args);

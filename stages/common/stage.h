@@ -23,7 +23,10 @@ struct FrameSelection {
 
 struct StageArgs {
   std::string session_dir;
-  std::string oracle;  // non-empty: feed this stage ground-truth inputs (validation mode)
+  // Validation mode (DESIGN.md "Oracle inputs"): read the inputs that `fourd-validate
+  // --prepare-oracle` derived from ground truth (oracle/<input stage>/) instead of the previous
+  // stage's outputs, and write to <stage>_oracle/ so pipeline and oracle results coexist.
+  bool oracle = false;
   FrameSelection selection;
   int threads = 0;     // 0: all cores
   bool verbose = false;
@@ -35,6 +38,14 @@ struct StageInfo {
   bool takes_frame_range = false;
   bool supports_oracle = false;
 };
+
+// Folder a stage reads the outputs of `input_stage` from: <session>/<input_stage>, or
+// <session>/oracle/<input_stage> in oracle mode.
+std::filesystem::path stage_input_dir(const Session& session, const StageArgs& args,
+                                      const std::string& input_stage);
+// Folder a stage writes to: <session>/<stage>, or <session>/<stage>_oracle in oracle mode.
+std::filesystem::path stage_output_dir(const Session& session, const StageArgs& args,
+                                       const std::string& stage);
 
 // Parses the common options plus those `add_options` registers, opens logs/<name>.log in the
 // session, runs `body`, and returns the process exit code. Never throws.

@@ -41,7 +41,7 @@ std::vector<std::array<double, 3>> test_points(int num_inputs) {
 // The working state of the bisection: the leaf cells and where every edge midpoint went.
 class Refinement {
  public:
-  explicit Refinement(BlendSpace* space) : space_(space) {
+  explicit Refinement(BlendSpace* space) : space_(space), references_(space->num_references()) {
     Cell root;
     root.corners = space->cells.front();
     cells_.push_back(root);
@@ -78,6 +78,14 @@ class Refinement {
     }
   }
 
+  // Returns to an earlier state of this refinement, dropping the references added since.
+  void restore(Refinement&& earlier) {
+    *this = std::move(earlier);
+    space_->reference_weights.resize(static_cast<std::size_t>(references_) * space_->num_inputs);
+    space_->frames.resize(static_cast<std::size_t>(references_) * space_->num_frames *
+                          space_->frame_stride());
+  }
+
   // Writes the leaf cells into the space.
   void store_cells() const {
     space_->cells.clear();
@@ -95,6 +103,7 @@ class Refinement {
       w[k] = 0.5 * (space_->reference_weights[a * n + k] + space_->reference_weights[b * n + k]);
     }
     const int m = add_reference(space_, w);
+    references_ = space_->num_references();
     midpoints_[key] = m;
     pending_.push_back(m);
     return m;
@@ -123,6 +132,7 @@ class Refinement {
   }
 
   BlendSpace* space_;
+  int references_;  // references in the space in this state (restore() truncates to it)
   std::vector<Cell> cells_;
   std::map<std::pair<int, int>, int> midpoints_;
   std::vector<int> pending_;
@@ -182,6 +192,109 @@ void check_space(const BlendSpace& space, const Eigen::Matrix3Xd& reference) {
   }
 }
 
+// The test weights of every untested cell; a weight shared by two cells (an edge midpoint)
+// is solved once.
+struct TestSet {
+  std::vector<Test> tests;
+  std::vector<std::vector<double>> weights;
+};
+
+TestSet collect_tests(const BlendSpace& space, const std::vector<Cell>& cells) {
+  const int n = space.num_inputs;
+  TestSet set;
+  std::map<std::array<long long, 3>, int> weight_index;
+  for (int c = 0; c < static_cast<int>(cells.size()); ++c) {
+    if (cells[c].error >= 0) continue;
+    for (const auto& g : test_points(n)) {
+      std::vector<double> w(n, 0.0);
+      for (int k = 0; k < n; ++k) {
+        for (int i = 0; i < n; ++i) {
+          w[i] += g[k] * space.reference_weights[cells[c].corners[k] * n + i];
+        }
+      }
+      std::array<long long, 3> key{};
+      for (int i = 0; i < n; ++i) key[i] = std::llround(w[i] * 1e9);
+      auto [it, inserted] = weight_index.emplace(key, static_cast<int>(set.weights.size()));
+      if (inserted) set.weights.push_back(w);
+      set.tests.push_back({c, g, it->second});
+    }
+  }
+  return set;
+}
+
+// For every frame: the non-linear blend at the pending references (stored in the space), then
+// at the test weights, compared with the hybrid and the linear blend. Returns per test its
+// largest error over the frames; raises *linear_error to the linear blend's largest error.
+// Frames run in parallel; each writes only its own frames and its own row of errors.
+std::vector<double> solve_frames(const NonlinearBlendData& data, const TestSet& set,
+                                 const std::vector<int>& pending, const std::vector<Cell>& cells,
+                                 BlendSpace* space, double* linear_error) {
+  const int n = space->num_inputs;
+  const int nt = static_cast<int>(set.tests.size());
+  std::vector<double> errors(static_cast<std::size_t>(space->num_frames) * nt, 0.0);
+  std::vector<double> linear_errors(space->num_frames, 0.0);
+  tbb::parallel_for(0, space->num_frames, [&](int f) {
+    std::vector<Eigen::Matrix3Xd> inputs(n);
+    for (int k = 0; k < n; ++k) inputs[k] = frame_positions(*space, k, f);
+    NonlinearBlendInputs prepared;
+    nonlinear_blend_prepare(data, inputs, &prepared);
+    Eigen::Matrix3Xd x;
+    for (int r : pending) {
+      const std::span<const double> w(space->reference_weights.data() + r * n, n);
+      nonlinear_blend_solve(data, prepared, w, &x);
+      store_frame(x, r, f, space);
+    }
+    for (int wi = 0; wi < static_cast<int>(set.weights.size()); ++wi) {
+      nonlinear_blend_solve(data, prepared, set.weights[wi], &x);
+      const Eigen::Matrix3Xd linear = linear_blend(inputs, set.weights[wi]);
+      linear_errors[f] = std::max(linear_errors[f], (x - linear).colwise().norm().maxCoeff());
+      for (int ti = 0; ti < nt; ++ti) {
+        const Test& test = set.tests[ti];
+        if (test.weight != wi) continue;
+        errors[static_cast<std::size_t>(f) * nt + ti] =
+            max_distance(x, *space, cells[test.cell].corners, test.g, f);
+      }
+    }
+  });
+  std::vector<double> worst(nt, 0.0);
+  for (int f = 0; f < space->num_frames; ++f) {
+    *linear_error = std::max(*linear_error, linear_errors[f]);
+    for (int ti = 0; ti < nt; ++ti) {
+      worst[ti] = std::max(worst[ti], errors[static_cast<std::size_t>(f) * nt + ti]);
+    }
+  }
+  return worst;
+}
+
+// Bisects the cells above epsilon, worst first, while depth and the reference budget allow.
+// Closure may split more cells than the one marked, so a split that would overrun the budget
+// is undone. Returns whether anything was split.
+bool refine_worst(const HybridBuildOptions& options, Refinement* refinement) {
+  const std::vector<Cell>& cells = refinement->cells();
+  std::vector<int> marked;
+  for (int c = 0; c < static_cast<int>(cells.size()); ++c) {
+    if (cells[c].error > options.epsilon && cells[c].depth < options.max_depth) {
+      marked.push_back(c);
+    }
+  }
+  std::sort(marked.begin(), marked.end(),
+            [&](int a, int b) { return cells[a].error > cells[b].error; });
+  // Refining replaces a cell by a child in place and appends the rest, so the indices of marked
+  // cells stay valid; a cell already split by another's closure is untested (error < 0).
+  bool any = false;
+  for (int c : marked) {
+    if (refinement->cells()[c].error < 0) continue;
+    Refinement before = *refinement;
+    refinement->refine(c);
+    if (refinement->added() > options.max_references) {
+      refinement->restore(std::move(before));
+      break;
+    }
+    any = true;
+  }
+  return any;
+}
+
 }  // namespace
 
 void HybridBuildOptions::check() const {
@@ -198,8 +311,7 @@ HybridBuildReport build_hybrid_references(const HybridBuildOptions& options,
   options.check();
   check_space(*space, reference);
   HybridBuildReport report;
-  const int n = space->num_inputs;
-  if (n == 1) {  // a single input: the hybrid is the input, exactly
+  if (space->num_inputs == 1) {  // a single input: the hybrid is the input, exactly
     report.cells = 1;
     report.converged = true;
     return report;
@@ -208,100 +320,18 @@ HybridBuildReport build_hybrid_references(const HybridBuildOptions& options,
   nonlinear_blend_precompute(reference, triangles, &data);
 
   Refinement refinement(space);
-  const std::vector<std::array<double, 3>> points = test_points(n);
-  for (;;) {
-    // The tests of every untested cell, with duplicate weights (shared edge midpoints) solved once.
-    std::vector<Test> tests;
-    std::vector<std::vector<double>> weights;
-    std::map<std::array<long long, 3>, int> weight_index;
-    auto& cells = refinement.cells();
-    for (int c = 0; c < static_cast<int>(cells.size()); ++c) {
-      if (cells[c].error >= 0) continue;
-      for (const auto& g : points) {
-        std::vector<double> w(n, 0.0);
-        for (int k = 0; k < n; ++k) {
-          for (int i = 0; i < n; ++i)
-            w[i] += g[k] * space->reference_weights[cells[c].corners[k] * n + i];
-        }
-        std::array<long long, 3> key{};
-        for (int i = 0; i < n; ++i) key[i] = std::llround(w[i] * 1e9);
-        auto [it, inserted] = weight_index.emplace(key, static_cast<int>(weights.size()));
-        if (inserted) weights.push_back(w);
-        tests.push_back({c, g, it->second});
-      }
-    }
-    const std::vector<int> pending = refinement.pending();
-
-    // Per frame: the pending references' frames, then the errors of the tests. Frames are
-    // independent; each writes only its own frames and its own row of errors.
-    const int nt = static_cast<int>(tests.size());
-    std::vector<double> errors(static_cast<std::size_t>(space->num_frames) * nt, 0.0);
-    std::vector<double> linear_errors(space->num_frames, 0.0);
-    tbb::parallel_for(0, space->num_frames, [&](int f) {
-      std::vector<Eigen::Matrix3Xd> inputs(n);
-      for (int k = 0; k < n; ++k) inputs[k] = frame_positions(*space, k, f);
-      NonlinearBlendInputs prepared;
-      nonlinear_blend_prepare(data, inputs, &prepared);
-      Eigen::Matrix3Xd x;
-      for (int r : pending) {
-        nonlinear_blend_solve(data, prepared,
-                              std::span<const double>(space->reference_weights).subspan(r * n, n),
-                              &x);
-        store_frame(x, r, f, space);
-      }
-      for (int wi = 0; wi < static_cast<int>(weights.size()); ++wi) {
-        nonlinear_blend_solve(data, prepared, weights[wi], &x);
-        const Eigen::Matrix3Xd linear = linear_blend(inputs, weights[wi]);
-        linear_errors[f] = std::max(linear_errors[f], (x - linear).colwise().norm().maxCoeff());
-        for (int ti = 0; ti < nt; ++ti) {
-          if (tests[ti].weight != wi) continue;
-          errors[static_cast<std::size_t>(f) * nt + ti] =
-              max_distance(x, *space, cells[tests[ti].cell].corners, tests[ti].g, f);
-        }
-      }
-    });
+  do {
+    const TestSet set = collect_tests(*space, refinement.cells());
+    const std::vector<double> errors = solve_frames(
+        data, set, refinement.pending(), refinement.cells(), space, &report.linear_max_error);
     report.nonlinear_solves +=
-        space->num_frames * static_cast<int>(pending.size() + weights.size());
+        space->num_frames * static_cast<int>(refinement.pending().size() + set.weights.size());
     refinement.clear_pending();
-    for (double e : linear_errors) report.linear_max_error = std::max(report.linear_max_error, e);
-    for (int ti = 0; ti < nt; ++ti) {
-      Cell& cell = cells[tests[ti].cell];
-      cell.error = std::max(cell.error, 0.0);
-      for (int f = 0; f < space->num_frames; ++f) {
-        cell.error = std::max(cell.error, errors[static_cast<std::size_t>(f) * nt + ti]);
-      }
+    for (std::size_t ti = 0; ti < set.tests.size(); ++ti) {
+      Cell& cell = refinement.cells()[set.tests[ti].cell];
+      cell.error = std::max({cell.error, 0.0, errors[ti]});
     }
-
-    // Bisect the worst cells first, while depth and the reference budget allow. Closure may
-    // split more cells than the one marked, so a split that would overrun the budget is undone.
-    std::vector<int> marked;
-    for (int c = 0; c < static_cast<int>(cells.size()); ++c) {
-      if (cells[c].error > options.epsilon && cells[c].depth < options.max_depth)
-        marked.push_back(c);
-    }
-    if (marked.empty()) break;
-    std::sort(marked.begin(), marked.end(),
-              [&](int a, int b) { return cells[a].error > cells[b].error; });
-    // Refining replaces cell i by a child in place and appends the rest, so the indices of
-    // marked cells stay valid; a cell already split by another's closure has error -1 and is
-    // skipped.
-    bool any = false;
-    for (int c : marked) {
-      if (refinement.cells()[c].error < 0) continue;
-      const Refinement before = refinement;
-      const int frames_before = space->num_references();
-      refinement.refine(c);
-      if (refinement.added() > options.max_references) {
-        refinement = before;
-        space->reference_weights.resize(static_cast<std::size_t>(frames_before) * n);
-        space->frames.resize(static_cast<std::size_t>(frames_before) * space->num_frames *
-                             space->frame_stride());
-        break;
-      }
-      any = true;
-    }
-    if (!any) break;
-  }
+  } while (refine_worst(options, &refinement));
 
   refinement.store_cells();
   report.references_added = refinement.added();

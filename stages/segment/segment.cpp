@@ -30,27 +30,19 @@ cv::Mat keyness(const cv::Mat& bgr, double offset) {
   return out;
 }
 
-double learn_threshold(const std::vector<cv::Mat>& keyness_maps) {
-  // Otsu over a 256-bin histogram of keyness in [-1, 1].
-  constexpr int kBins = 256;
-  std::vector<double> hist(kBins, 0.0);
-  for (const cv::Mat& k : keyness_maps) {
-    for (int r = 0; r < k.rows; ++r) {
-      const float* p = k.ptr<float>(r);
-      for (int c = 0; c < k.cols; ++c) {
-        int bin = static_cast<int>((std::clamp(p[c], -1.f, 1.f) + 1.f) * 0.5f * (kBins - 1) + 0.5f);
-        hist[bin] += 1;
-      }
-    }
-  }
+namespace {
+
+// Otsu's threshold over a histogram of keyness in [-1, 1].
+double otsu_threshold(const std::vector<double>& hist) {
+  const int bins = static_cast<int>(hist.size());
   double total = 0, sum = 0;
-  for (int i = 0; i < kBins; ++i) {
+  for (int i = 0; i < bins; ++i) {
     total += hist[i];
     sum += i * hist[i];
   }
   double w0 = 0, sum0 = 0, best = -1;
-  int best_bin = kBins / 2;
-  for (int i = 0; i < kBins; ++i) {
+  int best_bin = bins / 2;
+  for (int i = 0; i < bins; ++i) {
     w0 += hist[i];
     sum0 += i * hist[i];
     double w1 = total - w0;
@@ -62,12 +54,90 @@ double learn_threshold(const std::vector<cv::Mat>& keyness_maps) {
       best_bin = i;
     }
   }
-  return (best_bin + 0.5) / (kBins - 1) * 2.0 - 1.0;
+  return (best_bin + 0.5) / (bins - 1) * 2.0 - 1.0;
 }
 
-cv::Mat key_silhouette(const cv::Mat& keyness_map, double threshold, const SegmentOptions& options) {
-  cv::Mat mask;
-  cv::compare(keyness_map, threshold, mask, cv::CMP_LT);  // foreground: not green enough
+double bin_value(int bin, int bins) { return (bin + 0.5) / (bins - 1) * 2.0 - 1.0; }
+
+}  // namespace
+
+KeyModel learn_key(const std::vector<cv::Mat>& keyness_maps) {
+  constexpr int kBins = 256;
+  std::vector<double> hist(kBins, 0.0);
+  for (const cv::Mat& k : keyness_maps) {
+    for (int r = 0; r < k.rows; ++r) {
+      const float* p = k.ptr<float>(r);
+      for (int c = 0; c < k.cols; ++c) {
+        int bin = static_cast<int>((std::clamp(p[c], -1.f, 1.f) + 1.f) * 0.5f * (kBins - 1) + 0.5f);
+        hist[bin] += 1;
+      }
+    }
+  }
+  KeyModel key;
+  key.foreground_below = otsu_threshold(hist);
+  // Surely backdrop: above the 2nd percentile of the backdrop class, so that shadows and
+  // darker corners of the screen still count, but outline pixels mixed with the performer don't.
+  double backdrop = 0;
+  int first = 0;
+  while (first < kBins && bin_value(first, kBins) <= key.foreground_below) ++first;
+  for (int i = first; i < kBins; ++i) backdrop += hist[i];
+  double acc = 0;
+  key.backdrop_above = key.foreground_below;
+  for (int i = first; i < kBins; ++i) {
+    acc += hist[i];
+    if (acc >= 0.02 * backdrop) {
+      key.backdrop_above = std::max(key.foreground_below, bin_value(i, kBins));
+      break;
+    }
+  }
+  return key;
+}
+
+cv::Mat key_silhouette(const cv::Mat& bgr, const KeyModel& key, const SegmentOptions& options) {
+  const cv::Mat k = keyness(bgr, options.key_offset);
+  cv::Mat sure_fg = k < key.foreground_below, sure_bg = k > key.backdrop_above;
+  // Colours mix linearly at the outline: C = alpha F + (1 - alpha) B. With B and F the mean
+  // colours of the sure backdrop and sure performer near the pixel, alpha is the projection
+  // of C - B onto F - B.
+  cv::Mat color, fg_f, bg_f, sum_fg, sum_bg, n_fg, n_bg;
+  bgr.convertTo(color, CV_32FC3);
+  sure_fg.convertTo(fg_f, CV_32F, 1.0 / 255);
+  sure_bg.convertTo(bg_f, CV_32F, 1.0 / 255);
+  const cv::Size fg_window(2 * options.matte_radius - 1, 2 * options.matte_radius - 1);
+  const cv::Size bg_window(2 * options.matte_radius + 1, 2 * options.matte_radius + 1);
+  cv::Mat fg3, bg3;
+  cv::merge(std::vector<cv::Mat>{fg_f, fg_f, fg_f}, fg3);
+  cv::merge(std::vector<cv::Mat>{bg_f, bg_f, bg_f}, bg3);
+  cv::boxFilter(color.mul(fg3), sum_fg, CV_32F, fg_window, {-1, -1}, false);
+  cv::boxFilter(color.mul(bg3), sum_bg, CV_32F, bg_window, {-1, -1}, false);
+  cv::boxFilter(fg_f, n_fg, CV_32F, fg_window, {-1, -1}, false);
+  cv::boxFilter(bg_f, n_bg, CV_32F, bg_window, {-1, -1}, false);
+  cv::Mat mask(bgr.size(), CV_8U);
+  for (int r = 0; r < bgr.rows; ++r) {
+    const std::uint8_t* f = sure_fg.ptr<std::uint8_t>(r);
+    const std::uint8_t* b = sure_bg.ptr<std::uint8_t>(r);
+    const cv::Vec3f* c = color.ptr<cv::Vec3f>(r);
+    const cv::Vec3f *sf = sum_fg.ptr<cv::Vec3f>(r), *sb = sum_bg.ptr<cv::Vec3f>(r);
+    const float *nf = n_fg.ptr<float>(r), *nb = n_bg.ptr<float>(r);
+    const float* kk = k.ptr<float>(r);
+    std::uint8_t* m = mask.ptr<std::uint8_t>(r);
+    for (int x = 0; x < bgr.cols; ++x) {
+      if (f[x]) {
+        m[x] = 255;
+      } else if (b[x]) {
+        m[x] = 0;
+      } else if (nf[x] > 0 && nb[x] > 0) {
+        const cv::Vec3f fg = sf[x] / nf[x], bg = sb[x] / nb[x];
+        const cv::Vec3f d = fg - bg;
+        const float dd = d.dot(d);
+        const float alpha = dd > 1e-3f ? (c[x] - bg).dot(d) / dd : 0.f;
+        m[x] = alpha >= 0.5f ? 255 : 0;
+      } else {
+        // No sure neighbours of both kinds: fall back to the midpoint of the sure thresholds.
+        m[x] = kk[x] < 0.5 * (key.foreground_below + key.backdrop_above) ? 255 : 0;
+      }
+    }
+  }
   if (options.open_radius > 0) {
     cv::Mat kernel = cv::getStructuringElement(
         cv::MORPH_ELLIPSE, cv::Size(2 * options.open_radius + 1, 2 * options.open_radius + 1));
@@ -128,8 +198,8 @@ void run_segment(const Session& session, const StageArgs& args) {
   const fs::path out_dir = session.dir("segment");
 
   // Learn the key per camera from frames spread over every take.
-  std::vector<double> thresholds(cameras.size(), options.threshold);
-  if (options.threshold < 0) {
+  std::vector<KeyModel> keys(cameras.size());
+  {
     std::vector<std::pair<std::size_t, int>> samples;
     std::size_t total = 0;
     for (const auto& t : capture.takes) total += t.frame_count;
@@ -149,11 +219,12 @@ void run_segment(const Session& session, const StageArgs& args) {
         maps.push_back(keyness(read_capture_image(session, cameras[c], capture.takes[t].name, f),
                                options.key_offset));
       }
-      thresholds[c] = learn_threshold(maps);
+      keys[c] = learn_key(maps);
     });
     for (std::size_t c = 0; c < cameras.size(); ++c) {
-      log::info("camera {}: key threshold {:.3f} (learned from {} frames)", cameras[c].name,
-                thresholds[c], samples.size());
+      log::info("camera {}: keyness < {:.3f} is the performer, > {:.3f} the backdrop (learned "
+                "from {} frames)", cameras[c].name, keys[c].foreground_below,
+                keys[c].backdrop_above, samples.size());
     }
   }
 
@@ -176,12 +247,12 @@ void run_segment(const Session& session, const StageArgs& args) {
     const std::string& take = capture.takes[item.take].name;
     for (std::size_t c = 0; c < cameras.size(); ++c) {
       cv::Mat image = read_capture_image(session, cameras[c], take, item.frame);
-      cv::Mat mask = key_silhouette(keyness(image, options.key_offset), thresholds[c], options);
+      cv::Mat mask = key_silhouette(image, keys[c], options);
       double fraction = cv::countNonZero(mask) / static_cast<double>(mask.total());
       if (fraction < options.warn_foreground_min || fraction > options.warn_foreground_max) {
         log::warn("take {} camera {} frame {}: foreground covers {:.2f}% of the image — check "
-                  "the key (threshold {:.3f}) or whether the camera sees the volume",
-                  take, cameras[c].name, item.frame, 100 * fraction, thresholds[c]);
+                  "the key or whether the camera sees the volume",
+                  take, cameras[c].name, item.frame, 100 * fraction);
       }
       write_image_atomic(out_dir / take / cameras[c].name / (frame_name(item.frame) + ".png"), mask,
                          {cv::IMWRITE_PNG_COMPRESSION, 1});
@@ -198,7 +269,10 @@ void run_segment(const Session& session, const StageArgs& args) {
 
   // Per take and camera foreground fraction, so a bad key is visible at a glance.
   nlohmann::json report;
-  for (std::size_t c = 0; c < cameras.size(); ++c) report["thresholds"][cameras[c].name] = thresholds[c];
+  for (std::size_t c = 0; c < cameras.size(); ++c) {
+    report["key"][cameras[c].name] = {{"foreground_below", keys[c].foreground_below},
+                                      {"backdrop_above", keys[c].backdrop_above}};
+  }
   for (std::size_t t = 0; t < capture.takes.size(); ++t) {
     for (std::size_t c = 0; c < cameras.size(); ++c) {
       const Coverage& cov = coverage[t][c];

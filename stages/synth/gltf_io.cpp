@@ -507,7 +507,6 @@ class GltfReader {
     Table table;
     table.count = a.count;
     table.components = tinygltf::GetNumComponentsInType(a.type);
-    table.values.assign(table.count * table.components, 0.0);  // no buffer view: zeros
     const int component_size = tinygltf::GetComponentSizeInBytes(a.componentType);
     const std::size_t element_size = static_cast<std::size_t>(component_size) * table.components;
     if (a.bufferView >= 0) {
@@ -517,10 +516,15 @@ class GltfReader {
       if (a.count > 0 && a.byteOffset + stride * (a.count - 1) + element_size > view.byteLength)
         fail(fmt::format("{}: accessor {} reads past the end of buffer view {}", what, index,
                          a.bufferView));
+      table.values.resize(table.count * table.components);
       for (std::size_t i = 0; i < a.count; ++i)
         for (int c = 0; c < table.components; ++c)
           table.values[i * table.components + c] = decode_component(
               data + a.byteOffset + i * stride + c * component_size, a.componentType, a.normalized);
+    } else {
+      if (!a.sparse.isSparse || a.count > (std::size_t{1} << 26))
+        fail(fmt::format("{}: accessor {} has no data (no buffer view)", what, index));
+      table.values.assign(table.count * table.components, 0.0);  // zeros under the sparse ones
     }
     if (a.sparse.isSparse) apply_sparse(a, index, what, element_size, table);
     for (double v : table.values)
@@ -631,6 +635,7 @@ class CharacterImporter {
       : reader_(file, model), model_(model), options_(options) {}
 
   ImportedCharacter run() {
+    check_extensions();
     if (model_.skins.empty()) reader_.fail("no skin (the character must be a skinned mesh)");
     build_parents();
     build_joints();
@@ -651,6 +656,21 @@ class CharacterImporter {
   }
 
  private:
+  // Required extensions that change how geometry or images are stored (Draco, meshopt,
+  // quantisation, Basis textures) would be misread; material and light extensions only change
+  // shading, which we do not use.
+  void check_extensions() const {
+    std::string unsupported;
+    for (const std::string& e : model_.extensionsRequired) {
+      const bool harmless = e.starts_with("KHR_materials_") || e == "KHR_lights_punctual" ||
+                            e == "KHR_texture_transform";
+      if (!harmless) unsupported += (unsupported.empty() ? "" : ", ") + e;
+    }
+    if (!unsupported.empty())
+      reader_.fail("requires glTF extensions that are not supported: " + unsupported +
+                   " (re-export without compression)");
+  }
+
   void build_parents() {
     parent_.assign(model_.nodes.size(), -1);
     for (std::size_t n = 0; n < model_.nodes.size(); ++n)

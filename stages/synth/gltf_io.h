@@ -55,8 +55,9 @@ struct ImportedCharacter {
 // our skeleton and are dropped; morph targets are ignored.
 //
 // Throws IoError if the file cannot be read, InputError naming the file and what is wrong for
-// a file that is not glTF, has no skin or no skinned mesh, or uses an accessor type or
-// component type a field does not allow.
+// a file that is not glTF, has no skin or no skinned mesh, uses an accessor type or component
+// type a field does not allow, or requires an extension that changes how data is stored
+// (Draco, meshopt, quantisation: re-export without compression).
 ImportedCharacter read_gltf_character(const std::filesystem::path& path,
                                       const GltfImportOptions& options = {});
 

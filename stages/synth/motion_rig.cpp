@@ -198,7 +198,7 @@ void solve_legs(const Rig& rig, const std::array<FootState, 2>& feet, WorldPose&
   }
 }
 
-void hang_arm(const Rig& rig, int side, double swing, double elbow, WorldPose& pose) {
+void hang_arm(const Rig& rig, int side, double swing, double elbow, WorldPose& pose, double shrug) {
   const Skeleton& sk = rig.skeleton;
   const std::size_t i = static_cast<std::size_t>(side);
   const Vector3d& d0 = rig.arm_direction[i];
@@ -206,7 +206,7 @@ void hang_arm(const Rig& rig, int side, double swing, double elbow, WorldPose& p
   const double rest_drop = std::atan2(-d0.z(), std::abs(d0.y()));
   const double lower = kHangDeg * M_PI / 180 - rest_drop;
   const Matrix3d hang = rot_x(side == 0 ? -lower : lower);
-  pose.set_local(sk, rig.clavicle[i], Matrix3d::Identity());
+  pose.set_local(sk, rig.clavicle[i], rot_x(side == 0 ? shrug : -shrug));
   pose.set_local(sk, rig.upper_arm[i], rot_y(-swing) * hang);
   // The elbow flexes the forearm forward: about d0 x (+x) in the upper arm's frame.
   const Vector3d hinge = d0.cross(Vector3d::UnitX()).normalized();

@@ -92,8 +92,9 @@ double max_pelvis_height(const Rig& rig, const Vector2d& pelvis_xy, const Matrix
 // world rotation and the root must be set.
 void solve_legs(const Rig& rig, const std::array<FootState, 2>& feet, WorldPose& pose);
 
-// Arms hanging with a forward swing (radians, + = hand forward) and elbow flexion.
-void hang_arm(const Rig& rig, int side, double swing, double elbow, WorldPose& pose);
+// Arms hanging with a forward swing (radians, + = hand forward) and elbow flexion, the
+// shoulder raised by `shrug` (radians of clavicle elevation). The chest must be set.
+void hang_arm(const Rig& rig, int side, double swing, double elbow, WorldPose& pose, double shrug = 0);
 
 // The palm centre of the right hand (side 1) or left hand (side 0).
 Vector3d palm_position(const Rig& rig, int side, const WorldPose& pose);

@@ -234,6 +234,7 @@ struct Posture {
   double bend = 0;    // trunk flexion [rad]
   double crouch = 0;  // pelvis lowering [m]
   double twist = 0;   // trunk rotation towards the target [rad]
+  double shrug = 0;   // right shoulder raised [rad]
 };
 
 class ReachGenerator {
@@ -251,8 +252,7 @@ class ReachGenerator {
     choose_posture();
     // The palm path, in the chest's frame: from the hanging hand to the target.
     const WorldPose p0 = body(0), p1 = body(1);
-    WorldPose hanging = p0;
-    hang_arm(rig_, 1, 0, kHangElbow, hanging);
+    const WorldPose& hanging = p0;
     const Vector3d s0 = p0.position(rig_.skeleton, rig_.upper_arm[1]);
     const Vector3d s1 = p1.position(rig_.skeleton, rig_.upper_arm[1]);
     const Matrix3d& c0 = p0.rotation[static_cast<std::size_t>(rig_.chest)];
@@ -323,7 +323,8 @@ class ReachGenerator {
     pose.rotation[static_cast<std::size_t>(rig_.spine)] = rot_z(h + 0.6 * posture.twist) * rot_y(0.75 * posture.bend);
     const Matrix3d chest = rot_z(h + posture.twist) * rot_y(posture.bend);
     pose.rotation[static_cast<std::size_t>(rig_.chest)] = chest;
-    for (int side = 0; side < 2; ++side) hang_arm(rig_, side, 0, kHangElbow, pose);
+    hang_arm(rig_, 0, 0, kHangElbow, pose);
+    hang_arm(rig_, 1, 0, kHangElbow, pose, posture.shrug);
     // Look at the target.
     const Vector3d eye = pose.position(sk, rig_.head);
     const Vector3d to_target = target_ - eye;
@@ -340,7 +341,7 @@ class ReachGenerator {
   static double angle(double a) { return std::remainder(a, 2 * M_PI); }
 
   WorldPose body(double s) const {
-    return body(Posture{s * posture_.bend, s * posture_.crouch, s * posture_.twist}, s);
+    return body(Posture{s * posture_.bend, s * posture_.crouch, s * posture_.twist, s * posture_.shrug}, s);
   }
 
   WorldPose pose(double s) const {
@@ -363,22 +364,25 @@ class ReachGenerator {
     return pose;
   }
 
-  // The least bending and crouching that brings the target well within the arm's reach.
+  // The least bending and crouching that brings the target well within the arm's reach; the
+  // shoulder rises for targets above it.
   void choose_posture() {
     const double k = rig_.leg_length() / kNominalLeg;
     const double reach = rig_.reach_length();
     const Vector2d local(spec_.reach_target[0], spec_.reach_target[1]);
     const double twist = std::clamp(0.35 * std::atan2(local.y() - rig_.hip_offset[1].y(), std::max(local.x(), 0.05)),
                                     -30 * kDeg, 30 * kDeg);
+    const double above = target_.z() - rig_.rest[static_cast<std::size_t>(rig_.upper_arm[1])].z();
+    const double shrug = std::clamp(above / (0.5 * k), 0.0, 1.0) * 25 * kDeg;
     double best = std::numeric_limits<double>::infinity();
     bool found = false;
-    for (double bend = 0; bend <= 70 * kDeg + 1e-9; bend += 2.5 * kDeg) {
-      for (double crouch = 0; crouch <= 0.4 * k + 1e-9; crouch += 0.02 * k) {
-        const Posture p{bend, crouch, twist};
-        const double effort = bend / (70 * kDeg) + 1.5 * crouch / (0.4 * k);
+    for (double bend = 0; bend <= 90 * kDeg + 1e-9; bend += 2.5 * kDeg) {
+      for (double crouch = 0; crouch <= 0.45 * k + 1e-9; crouch += 0.015 * k) {
+        const Posture p{bend, crouch, twist, shrug};
+        const double effort = bend / (90 * kDeg) + 1.5 * crouch / (0.45 * k);
         if (effort >= best) continue;
         const double d = (target_ - body(p, 0).position(rig_.skeleton, rig_.upper_arm[1])).norm();
-        if (d <= 0.92 * reach && d >= 0.35 * reach) {
+        if (d <= 0.95 * reach && d >= 0.35 * reach) {
           best = effort;
           posture_ = p;
           found = true;

@@ -99,7 +99,8 @@ float value_noise(float x, float y, std::uint64_t salt) {
   return (a + (b - a) * tx) + ((c + (d - c) * tx) - (a + (b - a) * tx)) * ty;
 }
 
-// Light grey-green studio floor (BGR albedo) with mottling at several scales. Octaves finer
+// Chroma-green studio floor (BGR albedo), as volumetric-capture stages paint their floors, with
+// mottling at several scales; the performer's shadow falls on it. Octaves finer
 // than the pixel footprint fade out, which keeps the far floor from aliasing.
 Eigen::Vector3f floor_albedo(double x, double y, float footprint_m) {
   struct Octave {
@@ -119,7 +120,7 @@ Eigen::Vector3f floor_albedo(double x, double y, float footprint_m) {
     }
     ++salt;
   }
-  const Eigen::Vector3f base(150.f / 255, 172.f / 255, 158.f / 255);  // B, G, R
+  const Eigen::Vector3f base(70.f / 255, 175.f / 255, 60.f / 255);  // B, G, R
   return base * brightness;
 }
 

@@ -36,6 +36,7 @@ struct SynthOptions {
   RigOptions rig;
   StudioOptions studio;
   CalibrationNoise calibration_noise;
+  bool center_takes = true;  // shift each take so its ground path is centred in the volume
   std::vector<MotionSpec> takes;
 
   template <class V>
@@ -45,6 +46,8 @@ struct SynthOptions {
     v("rig", rig, "camera rig");
     v("studio", studio, "lighting, backdrop, noise");
     v("calibration_noise", calibration_noise, "error added to the written calibration");
+    v("center_takes", center_takes,
+      "shift each take so its ground path is centred on the volume (ignores start_position)");
     v("takes", takes, "the takes to perform and capture");
   }
   void check() const;

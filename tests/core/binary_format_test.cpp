@@ -1,9 +1,8 @@
 #include "pipeline/core/binary_format.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
-
-#include <fmt/format.h>
 
 #include <cstring>
 #include <fstream>
@@ -155,7 +154,8 @@ TEST_F(BinaryFormatTest, RefusesFlippedPayloadBit) {
 TEST_F(BinaryFormatTest, RefusesTruncatedFile) {
   save_sample();
   const std::string data = bytes();
-  for (std::size_t size : {data.size() - 1, kBinaryHeaderSize + 3, std::size_t{20}, std::size_t{0}}) {
+  for (std::size_t size :
+       {data.size() - 1, kBinaryHeaderSize + 3, std::size_t{20}, std::size_t{0}}) {
     overwrite(data.substr(0, size));
     std::string message = open_error();
     EXPECT_TRUE(contains(message, "data.bin")) << message;

@@ -1,9 +1,8 @@
 #include "pipeline/core/mesh_io.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
-
-#include <fmt/format.h>
 
 #include <algorithm>
 #include <bit>
@@ -23,8 +22,7 @@ class MeshIoTest : public ::testing::Test {
  protected:
   void SetUp() override {
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           fmt::format("fourd_mesh_io_{}_{}", ::getpid(), info->name());
+    dir_ = fs::temp_directory_path() / fmt::format("fourd_mesh_io_{}_{}", ::getpid(), info->name());
     fs::remove_all(dir_);
     fs::create_directories(dir_);
   }
@@ -69,8 +67,9 @@ Mesh make_attributed_sphere() {
   for (std::size_t i = 0; i < mesh.num_vertices(); ++i) {
     const Vec3f& p = mesh.positions[i];
     mesh.colors.emplace_back(i % 256, (i * 7) % 256, 255 - i % 256);
-    mesh.uvs.emplace_back(0.5f + std::atan2(p.y(), p.x()) / (2 * std::numbers::pi_v<float>),
-                          std::acos(std::clamp(p.z() / 0.7f, -1.f, 1.f)) / std::numbers::pi_v<float>);
+    mesh.uvs.emplace_back(
+        0.5f + std::atan2(p.y(), p.x()) / (2 * std::numbers::pi_v<float>),
+        std::acos(std::clamp(p.z() / 0.7f, -1.f, 1.f)) / std::numbers::pi_v<float>);
   }
   return mesh;
 }
@@ -220,7 +219,7 @@ TEST_F(MeshIoTest, PlyMeshLabConventions) {
                                   "element face 1\nproperty list uchar int vertex_indices\n"
                                   "property list uchar float texcoord\nend_header\n"
                                   "0 0 0\n1 0 0\n0 1 0\n3 0 1 2 5 0 0 1 0 1\n");
-  EXPECT_TRUE(contains(input_error([&] { read_ply(odd); }), "odd.ply:10: odd texcoord length 5"));
+  EXPECT_TRUE(contains(input_error([&] { read_ply(odd); }), "odd.ply:14: odd texcoord length 5"));
 }
 
 // Appends `value` to `out` in the given byte order.
@@ -228,7 +227,8 @@ template <class T>
 void put(std::string& out, T value, bool big_endian = false) {
   char bytes[sizeof(T)];
   std::memcpy(bytes, &value, sizeof(T));
-  if (big_endian != (std::endian::native == std::endian::big)) std::reverse(bytes, bytes + sizeof(T));
+  if (big_endian != (std::endian::native == std::endian::big))
+    std::reverse(bytes, bytes + sizeof(T));
   out.append(bytes, sizeof(T));
 }
 
@@ -285,7 +285,8 @@ TEST_F(MeshIoTest, PlyTruncatedBinaryThrowsNamingTheFile) {
     EXPECT_TRUE(contains(message, "truncated")) << message;
   }
   // Cut inside the vertices: the message names the element and its index.
-  const fs::path file = write_text("cut.ply", bytes.substr(0, bytes.find("end_header\n") + 11 + 50));
+  const fs::path file =
+      write_text("cut.ply", bytes.substr(0, bytes.find("end_header\n") + 11 + 50));
   std::string message = input_error([&] { read_ply(file); });
   EXPECT_TRUE(contains(message, "vertex 1 of 4")) << message;
   // Cut inside the header.
@@ -344,9 +345,11 @@ TEST_F(MeshIoTest, PlyMalformedAsciiNamesFileAndLine) {
 TEST_F(MeshIoTest, PlyBadHeaders) {
   EXPECT_TRUE(contains(input_error([&] { read_ply(write_text("a.ply", "OFF\n3 1 0\n")); }),
                        "not a PLY file"));
-  EXPECT_TRUE(contains(
-      input_error([&] { read_ply(write_text("b.ply", "ply\nformat binary_middle_endian 1.0\nend_header\n")); }),
-      "b.ply:2: unknown PLY format"));
+  EXPECT_TRUE(contains(input_error([&] {
+                         read_ply(write_text("b.ply",
+                                             "ply\nformat binary_middle_endian 1.0\nend_header\n"));
+                       }),
+                       "b.ply:2: unknown PLY format"));
   EXPECT_TRUE(contains(input_error([&] {
                          read_ply(write_text("c.ply",
                                              "ply\nformat ascii 1.0\nelement vertex 1\n"
@@ -392,15 +395,15 @@ TEST_F(MeshIoTest, ObjReaderFormsNegativeIndicesAndMaterials) {
              "newmtl other\nmap_Kd wrong.png\n"
              "newmtl skin\nKd 1 1 1\nmap_Kd -s 1 1 1 -clamp on ..\\tex\\skin map.png\n");
   const fs::path file = write_text("shape.obj",
-                                    "# comment\n"
-                                    "mtllib materials/lib.mtl\n"
-                                    "o shape\n"
-                                    "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0  # trailing comment\n"
-                                    "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
-                                    "vn 0 0 1\n"
-                                    "usemtl skin\n"
-                                    "s off\n"
-                                    "f -4/-4/-1 -3/-3/-1 -2/-2/-1 -1/-1/-1\n");
+                                   "# comment\n"
+                                   "mtllib materials/lib.mtl\n"
+                                   "o shape\n"
+                                   "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0  # trailing comment\n"
+                                   "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+                                   "vn 0 0 1\n"
+                                   "usemtl skin\n"
+                                   "s off\n"
+                                   "f -4/-4/-1 -3/-3/-1 -2/-2/-1 -1/-1/-1\n");
   Mesh mesh = read_obj(file);
   EXPECT_EQ(mesh.texture, "tex/skin map.png");
   ASSERT_EQ(mesh.num_triangles(), 2u);
@@ -411,20 +414,25 @@ TEST_F(MeshIoTest, ObjReaderFormsNegativeIndicesAndMaterials) {
   ASSERT_EQ(mesh.normals.size(), 4u);
   EXPECT_EQ(mesh.normals[3], Vec3f(0, 0, 1));
 
-  Mesh normals_only = read_obj(write_text("n.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//1\n"));
+  Mesh normals_only =
+      read_obj(write_text("n.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//1\n"));
   EXPECT_TRUE(normals_only.uvs.empty());
   EXPECT_EQ(normals_only.normals[1], Vec3f(0, 0, 1));
 
-  Mesh seams = read_obj(write_text("seam.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nvt 0.5 0.5\nf 1/4 2/2 3/3\n"));
+  Mesh seams = read_obj(
+      write_text("seam.obj",
+                 "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nvt 0.5 0.5\nf 1/4 2/2 3/3\n"));
   ASSERT_EQ(seams.uv_triangles.size(), 1u);
   EXPECT_EQ(seams.uvs[seams.uv_triangles[0][0]], Vec2f(0.5f, 0.5f));
   EXPECT_TRUE(seams.texture.empty());
 
   // Without usemtl, the library's first textured material; a missing library is not fatal.
   write_text("plain.mtl", "newmtl a\nKd 1 0 0\nnewmtl b\nmap_Kd b.png\n");
-  Mesh no_usemtl = read_obj(write_text("plain.obj", "mtllib plain.mtl\nmtllib gone.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"));
+  Mesh no_usemtl = read_obj(write_text(
+      "plain.obj", "mtllib plain.mtl\nmtllib gone.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"));
   EXPECT_EQ(no_usemtl.texture, "b.png");
-  Mesh missing = read_obj(write_text("missing.obj", "mtllib gone.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl x\nf 1 2 3\n"));
+  Mesh missing = read_obj(
+      write_text("missing.obj", "mtllib gone.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl x\nf 1 2 3\n"));
   EXPECT_TRUE(missing.texture.empty());
   EXPECT_EQ(missing.num_triangles(), 1u);
 }
@@ -441,7 +449,8 @@ TEST_F(MeshIoTest, ObjMalformedNamesFileAndLine) {
       {"v 0 0 0\nv 1 0 0\nv 0 x 0\n", "bad.obj:3: \"x\" is not a number"},
       {"v 0 0\n", "bad.obj:1: a vertex needs"},
       {"v 0 0 0\nv 1 0 0\nf 1 2\n", "bad.obj:3: face with 2 vertices"},
-      {"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/2\n", "bad.obj:5: texture coordinate index 2"},
+      {"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/2\n",
+       "bad.obj:5: texture coordinate index 2"},
       {"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/1\nf 1 2 3\n", "bad.obj:6: some faces have"},
   };
   for (const Case& c : cases) {

@@ -3,6 +3,7 @@
 #include "stages/motionspace/hybrid_build.h"
 
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <map>
 #include <numbers>
@@ -204,6 +205,20 @@ TEST(HybridBuild, TriangleCellsAreConforming) {
                            << edge.second;
     }
   }
+}
+
+TEST(HybridBuild, ResultDoesNotDependOnTheNumberOfThreads) {
+  const Sequences s = elbow_sequences(3);
+  BlendSpace parallel = space_of(s), serial = space_of(s);
+  HybridBuildOptions options;
+  build_hybrid_references(options, s.rest.positions, s.rest.triangles, &parallel);
+  {
+    tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+    build_hybrid_references(options, s.rest.positions, s.rest.triangles, &serial);
+  }
+  EXPECT_EQ(parallel.reference_weights, serial.reference_weights);
+  EXPECT_EQ(parallel.cells, serial.cells);
+  EXPECT_TRUE(parallel.frames == serial.frames);
 }
 
 TEST(HybridBuild, LimitsStopTheBisection) {

@@ -253,6 +253,43 @@ TEST(GltfIo, RotatedJointFramesAndScaledArmatureImportToTheSameSurface) {
         << "frame " << f;
 }
 
+// glTF attributes are per vertex: a mesh with per-corner UVs (seams) is split where a vertex
+// has several UVs, and every triangle corner keeps its position and UV.
+TEST(GltfIo, PerCornerUvsAreSplitIntoVertices) {
+  const fs::path dir = temp_dir("seams");
+  Character original = make_test_character();
+  Mesh& m = original.skin.rest;
+  m.uv_triangles = m.triangles;  // per corner, same UVs ...
+  const int seam = static_cast<int>(m.uvs.size());
+  for (std::size_t v = 0; v < m.num_vertices(); v += 4)  // ... except a seam at corner 0
+    m.uvs.emplace_back(m.uvs[v].x() + 0.8f, m.uvs[v].y());
+  std::size_t split = 0;
+  for (std::size_t f = 0; f < m.num_triangles(); ++f)
+    for (int c = 0; c < 3; ++c)
+      if (m.triangles[f][c] % 4 == 0 && f % 2 == 1) {
+        m.uv_triangles[f][c] = seam + m.triangles[f][c] / 4;
+        ++split;
+      }
+  ASSERT_GT(split, 0u);
+  const MotionClip clip = make_test_clip(original.skeleton, "turn", 3, 25, 6);
+  write_gltf_character(dir / "seams.glb", original, {clip});
+  const ImportedCharacter imported = read_gltf_character(dir / "seams.glb");
+  const Mesh& im = imported.character.skin.rest;
+  EXPECT_EQ(im.num_vertices(), m.num_vertices() + m.num_vertices() / 4);
+  ASSERT_EQ(im.num_triangles(), m.num_triangles());
+  for (std::size_t f = 0; f < clip.poses.size(); ++f) {
+    const Mesh a = skin_mesh(original.skin, forward_kinematics(original.skeleton, clip.poses[f]));
+    const Mesh b =
+        skin_mesh(imported.character.skin,
+                  forward_kinematics(imported.character.skeleton, imported.clips[0].poses[f]));
+    for (std::size_t t = 0; t < m.num_triangles(); ++t)
+      for (int c = 0; c < 3; ++c) {
+        EXPECT_LT((a.positions[m.triangles[t][c]] - b.positions[im.triangles[t][c]]).norm(), 1e-4);
+        EXPECT_LT((m.uvs[m.uv_triangles[t][c]] - im.uvs[im.triangles[t][c]]).norm(), 1e-6);
+      }
+  }
+}
+
 TEST(GltfIo, ResamplesAnimationsAtTheRequestedRate) {
   const fs::path dir = temp_dir("resample");
   const Character original = make_test_character();
@@ -324,6 +361,18 @@ TEST(GltfIo, UnusableFilesGiveErrorsNamingFileAndProblem) {
   for (auto& node : model.nodes) node.mesh = -1;
   save_model(model, dir / "meshless.glb");
   EXPECT_THROW(read_gltf_character(dir / "meshless.glb"), InputError);
+
+  model = load_model(dir / "c.glb");
+  model.extensionsUsed = {"KHR_draco_mesh_compression"};
+  model.extensionsRequired = {"KHR_draco_mesh_compression"};
+  save_model(model, dir / "draco.glb");
+  try {
+    read_gltf_character(dir / "draco.glb");
+    FAIL() << "a required compression extension was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("KHR_draco_mesh_compression"), std::string::npos)
+        << e.what();
+  }
 
   std::ofstream(dir / "garbage.glb") << "not a glTF file at all";
   EXPECT_THROW(read_gltf_character(dir / "garbage.glb"), InputError);

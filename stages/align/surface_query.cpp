@@ -1,0 +1,171 @@
+#include "stages/align/surface_query.h"
+
+#include <embree3/rtcore.h>
+
+#include <cstring>
+#include <limits>
+
+#include "pipeline/core/error.h"
+
+namespace fourd::align {
+namespace {
+
+// One Embree device for the process: creating one per mesh costs more than the queries.
+RTCDevice shared_device() {
+  static RTCDevice device = [] {
+    RTCDevice d = rtcNewDevice(nullptr);
+    if (!d) throw Error("align: cannot create the Embree device");
+    return d;
+  }();
+  return device;
+}
+
+struct QueryState {
+  const std::vector<Vec3f>* positions;
+  const std::vector<Tri>* triangles;
+  const std::vector<Vec3f>* face_normals;
+  Vec3f p;
+  Vec3f normal;
+  float min_cos;
+  bool use_normal;
+  SurfaceHit* hit;
+};
+
+bool point_query_callback(RTCPointQueryFunctionArguments* args) {
+  auto* state = static_cast<QueryState*>(args->userPtr);
+  const unsigned prim = args->primID;
+  const Vec3f& n = (*state->face_normals)[prim];
+  if (state->use_normal && n.dot(state->normal) < state->min_cos) return false;
+  const Tri& t = (*state->triangles)[prim];
+  Vec3f bary;
+  Vec3f q = closest_point_on_triangle(state->p, (*state->positions)[t[0]],
+                                      (*state->positions)[t[1]], (*state->positions)[t[2]], &bary);
+  float d = (q - state->p).norm();
+  if (d >= args->query->radius) return false;
+  args->query->radius = d;  // shrink the search: later candidates must be closer
+  SurfaceHit& hit = *state->hit;
+  hit.found = true;
+  hit.point = q;
+  hit.normal = n;
+  hit.triangle = static_cast<int>(prim);
+  hit.barycentric = bary;
+  hit.distance = d;
+  return true;
+}
+
+}  // namespace
+
+Vec3f closest_point_on_triangle(const Vec3f& p, const Vec3f& a, const Vec3f& b, const Vec3f& c,
+                                Vec3f* bary) {
+  const Vec3f ab = b - a, ac = c - a, ap = p - a;
+  const float d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) {
+    *bary = {1, 0, 0};
+    return a;
+  }
+  const Vec3f bp = p - b;
+  const float d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) {
+    *bary = {0, 1, 0};
+    return b;
+  }
+  const float vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+    const float v = d1 / (d1 - d3);
+    *bary = {1 - v, v, 0};
+    return a + v * ab;
+  }
+  const Vec3f cp = p - c;
+  const float d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) {
+    *bary = {0, 0, 1};
+    return c;
+  }
+  const float vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+    const float w = d2 / (d2 - d6);
+    *bary = {1 - w, 0, w};
+    return a + w * ac;
+  }
+  const float va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+    const float w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    *bary = {0, 1 - w, w};
+    return b + w * (c - b);
+  }
+  const float denom = 1.0f / (va + vb + vc);
+  const float v = vb * denom, w = vc * denom;
+  *bary = {1 - v - w, v, w};
+  return a + ab * v + ac * w;
+}
+
+struct SurfaceQuery::Impl {
+  std::vector<Vec3f> positions;
+  std::vector<Tri> triangles;  // the non-degenerate ones
+  std::vector<Vec3f> face_normals;
+  RTCScene scene = nullptr;
+  ~Impl() {
+    if (scene) rtcReleaseScene(scene);
+  }
+};
+
+SurfaceQuery::SurfaceQuery(const Mesh& mesh) : impl_(std::make_unique<Impl>()) {
+  Impl& s = *impl_;
+  s.positions = mesh.positions;
+  s.triangles.reserve(mesh.triangles.size());
+  s.face_normals.reserve(mesh.triangles.size());
+  for (const Tri& t : mesh.triangles) {
+    Vec3f n = (s.positions[t[1]] - s.positions[t[0]]).cross(s.positions[t[2]] - s.positions[t[0]]);
+    float len = n.norm();
+    if (!(len > 0)) continue;
+    s.triangles.push_back(t);
+    s.face_normals.push_back(n / len);
+  }
+  RTCDevice device = shared_device();
+  s.scene = rtcNewScene(device);
+  rtcSetSceneBuildQuality(s.scene, RTC_BUILD_QUALITY_HIGH);
+  if (!s.triangles.empty()) {
+    RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(
+        geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), s.positions.size()));
+    auto* ib = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
+        geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), s.triangles.size()));
+    if (!vb || !ib) throw Error("align: Embree could not allocate mesh buffers");
+    for (std::size_t i = 0; i < s.positions.size(); ++i) {
+      std::memcpy(vb + 3 * i, s.positions[i].data(), 3 * sizeof(float));
+    }
+    for (std::size_t f = 0; f < s.triangles.size(); ++f) {
+      for (int k = 0; k < 3; ++k) ib[3 * f + k] = static_cast<unsigned>(s.triangles[f][k]);
+    }
+    rtcCommitGeometry(geom);
+    rtcAttachGeometry(s.scene, geom);
+    rtcReleaseGeometry(geom);
+  }
+  rtcCommitScene(s.scene);
+}
+
+SurfaceQuery::~SurfaceQuery() = default;
+
+SurfaceHit SurfaceQuery::closest(const Vec3f& p, float max_distance, const Vec3f& normal,
+                                 float min_cos) const {
+  SurfaceHit hit;
+  if (impl_->triangles.empty()) return hit;
+  QueryState state{&impl_->positions, &impl_->triangles, &impl_->face_normals, p, normal,
+                   min_cos, !normal.isZero(), &hit};
+  RTCPointQuery query;
+  query.x = p.x();
+  query.y = p.y();
+  query.z = p.z();
+  query.radius = max_distance;
+  query.time = 0;
+  RTCPointQueryContext context;
+  rtcInitPointQueryContext(&context);
+  rtcPointQuery(impl_->scene, &query, &context, point_query_callback, &state);
+  return hit;
+}
+
+const std::vector<Vec3f>& SurfaceQuery::positions() const { return impl_->positions; }
+const std::vector<Tri>& SurfaceQuery::triangles() const { return impl_->triangles; }
+const std::vector<Vec3f>& SurfaceQuery::face_normals() const { return impl_->face_normals; }
+
+}  // namespace fourd::align

@@ -1,0 +1,49 @@
+#pragma once
+// Closest points on a triangle mesh (Embree BVH point queries), optionally restricted to
+// triangles whose normal is compatible with the query's: registration matches a template
+// vertex only to surface that faces the same way, so the front of an arm never snaps onto
+// the body behind it.
+#include <memory>
+#include <vector>
+
+#include "pipeline/core/mesh.h"
+
+namespace fourd::align {
+
+struct SurfaceHit {
+  bool found = false;
+  Vec3f point = Vec3f::Zero();   // closest point on the surface
+  Vec3f normal = Vec3f::Zero();  // unit normal of the triangle it lies on
+  int triangle = -1;
+  Vec3f barycentric = Vec3f::Zero();  // of `point` in `triangle`
+  float distance = 0;                 // |query - point| [m]
+};
+
+class SurfaceQuery {
+ public:
+  // Keeps a copy of positions and triangles. Degenerate triangles are skipped.
+  explicit SurfaceQuery(const Mesh& mesh);
+  ~SurfaceQuery();
+  SurfaceQuery(const SurfaceQuery&) = delete;
+  SurfaceQuery& operator=(const SurfaceQuery&) = delete;
+
+  // Closest surface point within `max_distance` of `p`. With a non-zero `normal`, only
+  // triangles whose unit normal n satisfies n . normal >= min_cos count. Thread-safe.
+  SurfaceHit closest(const Vec3f& p, float max_distance, const Vec3f& normal = Vec3f::Zero(),
+                     float min_cos = -1.0f) const;
+
+  const std::vector<Vec3f>& positions() const;
+  const std::vector<Tri>& triangles() const;
+  const std::vector<Vec3f>& face_normals() const;  // unit; zero for degenerate triangles
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Closest point to `p` on triangle (a, b, c) (Ericson, Real-Time Collision Detection 5.1.5);
+// `bary` receives its barycentric coordinates.
+Vec3f closest_point_on_triangle(const Vec3f& p, const Vec3f& a, const Vec3f& b, const Vec3f& c,
+                                Vec3f* bary);
+
+}  // namespace fourd::align

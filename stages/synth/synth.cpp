@@ -1,0 +1,213 @@
+#include "stages/synth/synth.h"
+
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Geometry>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <set>
+
+#include "pipeline/core/colmap_model.h"
+#include "pipeline/core/error.h"
+#include "pipeline/core/files.h"
+#include "pipeline/core/image_io.h"
+#include "pipeline/core/log.h"
+#include "pipeline/core/mesh_io.h"
+
+namespace fourd::synth {
+namespace {
+
+// Written into capture/ so that a rerun never overwrites a real studio capture.
+constexpr const char* kSyntheticMarker = ".synthetic";
+
+std::uint64_t mix_seed(std::uint64_t seed, const std::string& what, int a = 0, int b = 0) {
+  std::string key = fmt::format("{}|{}|{}|{}", seed, what, a, b);
+  return hash_bytes(key);
+}
+
+// The calibration a studio would hand us: the true cameras, optionally perturbed.
+std::vector<Camera> perturb_calibration(const std::vector<Camera>& rig, const CalibrationNoise& noise,
+                                        std::uint64_t seed) {
+  std::vector<Camera> out = rig;
+  if (!noise.any()) return out;
+  std::mt19937_64 rng(mix_seed(seed, "calibration_noise"));
+  std::normal_distribution<double> n01(0.0, 1.0);
+  for (Camera& cam : out) {
+    Eigen::Vector3d axis(n01(rng), n01(rng), n01(rng));
+    double angle = noise.rotation_deg * M_PI / 180.0 * n01(rng);
+    Eigen::Matrix3d dR = Eigen::AngleAxisd(angle, axis.normalized()).toRotationMatrix();
+    Eigen::Vector3d dt = Eigen::Vector3d(n01(rng), n01(rng), n01(rng)) * noise.translation_mm * 1e-3;
+    Eigen::Isometry3d perturbed = Eigen::Isometry3d::Identity();
+    perturbed.linear() = dR * cam.camera_from_world.linear();
+    perturbed.translation() = dR * cam.camera_from_world.translation() + dt;
+    cam.camera_from_world = perturbed;
+    double f = 1.0 + noise.focal_pct / 100.0 * n01(rng);
+    cam.intrinsics.fx *= f;
+    cam.intrinsics.fy *= f;
+  }
+  return out;
+}
+
+void write_json(const fs::path& path, const nlohmann::json& j) {
+  write_file_atomic(path, j.dump(1) + "\n");
+}
+
+nlohmann::json take_json(const MotionClip& clip) {
+  nlohmann::json j;
+  j["take"] = clip.spec.take;
+  j["kind"] = clip.spec.kind;
+  j["fps"] = clip.fps;
+  j["frames"] = clip.poses.size();
+  j["cycle_frames"] = clip.cycle_frames;
+  j["spec"] = {{"take", clip.spec.take},
+               {"kind", clip.spec.kind},
+               {"frames", clip.spec.frames},
+               {"speed", clip.spec.speed},
+               {"turn_rate", clip.spec.turn_rate},
+               {"jump_length", clip.spec.jump_length},
+               {"jump_height", clip.spec.jump_height},
+               {"reach_target", clip.spec.reach_target},
+               {"start_heading", clip.spec.start_heading},
+               {"start_position", clip.spec.start_position},
+               {"start_phase", clip.spec.start_phase}};
+  nlohmann::json params = nlohmann::json::object();
+  for (const auto& [name, value] : clip.parameters) params[name] = value;
+  j["parameters"] = params;
+  nlohmann::json root = nlohmann::json::array();
+  for (const RootState& r : clip.root) root.push_back({r.position.x(), r.position.y(), r.heading});
+  j["root"] = root;
+  j["phase"] = clip.phase;
+  return j;
+}
+
+nlohmann::json character_json(const Character& character) {
+  nlohmann::json j;
+  j["name"] = character.name;
+  j["height"] = character.height;
+  j["vertices"] = character.skin.rest.num_vertices();
+  j["triangles"] = character.skin.rest.num_triangles();
+  nlohmann::json joints = nlohmann::json::array();
+  for (std::size_t i = 0; i < character.skeleton.size(); ++i) {
+    const Eigen::Vector3d& o = character.skeleton.rest_offsets[i];
+    joints.push_back({{"name", character.skeleton.names[i]},
+                      {"parent", character.skeleton.parents[i]},
+                      {"offset", {o.x(), o.y(), o.z()}}});
+  }
+  j["joints"] = joints;
+  return j;
+}
+
+// Moves a take on the ground so the middle of its root path's bounding box is at the origin,
+// the centre of the capture volume.
+void center_on_volume(MotionClip& clip) {
+  Eigen::Vector2d lo = clip.root.front().position, hi = lo;
+  for (const RootState& r : clip.root) {
+    lo = lo.cwiseMin(r.position);
+    hi = hi.cwiseMax(r.position);
+  }
+  const Eigen::Vector2d shift = -0.5 * (lo + hi);
+  for (RootState& r : clip.root) r.position += shift;
+  for (Pose& p : clip.poses) p.root_position.head<2>() += shift;
+}
+
+// Refuse to overwrite a capture/ that synth did not make.
+void prepare_output_dirs(const Session& session) {
+  fs::path capture = session.capture_dir();
+  if (fs::exists(capture) && !fs::is_empty(capture) && !fs::exists(capture / kSyntheticMarker)) {
+    throw InputError(fmt::format(
+        "{} holds a capture that the synth stage did not make (no {} marker); refusing to "
+        "overwrite it. Remove stages.synth from session.yaml to process a real capture.",
+        capture.string(), kSyntheticMarker));
+  }
+  // Stale takes of an earlier run must not survive into this one.
+  for (const fs::path& dir : {capture, session.ground_truth_dir(), session.calibration_dir()}) {
+    std::error_code ec;
+    fs::remove_all(dir, ec);
+    if (ec) throw IoError(fmt::format("cannot clear {}: {}", dir.string(), ec.message()));
+    ensure_directory(dir);
+  }
+  write_file_atomic(capture / kSyntheticMarker, "made by fourd-synth\n");
+}
+
+}  // namespace
+
+void SynthOptions::check() const {
+  if (takes.empty()) throw ConfigError("takes: at least one take is needed");
+  std::set<std::string> names;
+  for (const MotionSpec& spec : takes) {
+    if (!names.insert(spec.take).second) {
+      throw ConfigError(fmt::format("takes: take '{}' appears twice", spec.take));
+    }
+  }
+}
+
+void run_synth(const Session& session, const StageArgs& args) {
+  SynthOptions options;
+  session.stage_options("synth", options);
+  const double fps = session.config().fps;
+
+  log::Timer timer;
+  Character character = make_procedural_character(options.character, options.seed);
+  log::info("performer: {} vertices, {} triangles, {} joints, height {:.2f} m ({:.1f} s)",
+            character.skin.rest.num_vertices(), character.skin.rest.num_triangles(),
+            character.skeleton.size(), character.height, timer.seconds());
+
+  // Every take is generated before anything is written: a take that cannot be performed
+  // (too few frames for its jump, say) must not leave half a session behind.
+  std::vector<MotionClip> clips;
+  for (const MotionSpec& spec : options.takes) {
+    clips.push_back(generate_motion(character.skeleton, spec, fps));
+    if (options.center_takes) center_on_volume(clips.back());
+  }
+  std::vector<Camera> rig = make_rig(options.rig);
+  prepare_output_dirs(session);
+
+  // Calibration as the studio would deliver it, and the truth for validation.
+  write_colmap_model(session.calibration_dir(),
+                     perturb_calibration(rig, options.calibration_noise, options.seed));
+  const fs::path gt = session.ground_truth_dir();
+  write_colmap_model(gt / "calibration", rig);
+  write_mesh(gt / "template.ply", character.skin.rest);
+  write_image_atomic(gt / "texture.png", character.texture);
+  write_json(gt / "character.json", character_json(character));
+  {
+    YAML::Emitter out;
+    out << to_yaml(options);
+    write_file_atomic(gt / "synth_options.yaml", std::string(out.c_str()) + "\n");
+  }
+
+  StudioRenderer renderer(options.studio);
+  std::size_t total_frames = 0;
+  for (const MotionSpec& spec : options.takes) total_frames += static_cast<std::size_t>(spec.frames);
+  log::Progress progress("rendering", total_frames);
+  for (const MotionClip& clip : clips) {
+    const MotionSpec& spec = clip.spec;
+    const int frames = static_cast<int>(clip.poses.size());
+    for (int f = 0; f < frames; ++f) {
+      Mesh posed = skin_mesh(character.skin, forward_kinematics(character.skeleton, clip.poses[f]));
+      const std::string name = frame_name(f);
+      Mesh gt_mesh;
+      gt_mesh.positions = posed.positions;
+      gt_mesh.triangles = posed.triangles;
+      write_mesh(gt / "meshes" / spec.take / (name + ".ply"), gt_mesh);
+      renderer.set_performer(posed, character.texture);
+      tbb::parallel_for(std::size_t{0}, rig.size(), [&](std::size_t c) {
+        const Camera& cam = rig[c];
+        RenderedView view =
+            renderer.render(cam, mix_seed(options.seed, spec.take, static_cast<int>(c), f));
+        write_image_atomic(session.capture_image(spec.take, cam.name, f), view.image);
+        write_image_atomic(gt / "silhouettes" / spec.take / cam.name / (name + ".png"),
+                           view.silhouette);
+      });
+      progress.step();
+    }
+    write_json(gt / "takes" / (spec.take + ".json"), take_json(clip));
+    std::string params;
+    for (const auto& [k, v] : clip.parameters) params += fmt::format(" {}={:.3f}", k, v);
+    log::info("take {}: {} frames ({}){}", spec.take, frames, spec.kind, params);
+  }
+  log::info("wrote {} takes x {} cameras to {}", options.takes.size(), rig.size(),
+            session.capture_dir().string());
+}
+
+}  // namespace fourd::synth

@@ -1,0 +1,435 @@
+#include "stages/synth/motion.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+
+#include "pipeline/core/error.h"
+#include "tests/synth/debug_render.h"
+
+namespace fourd::synth {
+namespace {
+
+constexpr double kFps = 25;
+constexpr double kGravity = 9.81;
+
+const Character& performer() {
+  static const Character character = [] {
+    CharacterOptions options;
+    options.texture_size = 256;
+    return make_procedural_character(options, 1);
+  }();
+  return character;
+}
+
+MotionSpec make_spec(const std::string& kind, int frames) {
+  MotionSpec spec;
+  spec.take = kind;
+  spec.kind = kind;
+  spec.frames = frames;
+  return spec;
+}
+
+MotionSpec walk(double speed, int frames = 80) {
+  MotionSpec s = make_spec("walk", frames);
+  s.speed = speed;
+  return s;
+}
+
+MotionSpec run(double speed, int frames = 60) {
+  MotionSpec s = make_spec("run", frames);
+  s.speed = speed;
+  return s;
+}
+
+MotionSpec turn(double speed, double rate, int frames = 100) {
+  MotionSpec s = make_spec("turn", frames);
+  s.speed = speed;
+  s.turn_rate = rate;
+  return s;
+}
+
+MotionSpec jump(double length, double height, int frames = 70) {
+  MotionSpec s = make_spec("jump", frames);
+  s.jump_length = length;
+  s.jump_height = height;
+  return s;
+}
+
+MotionSpec reach(double x, double y, double z, int frames = 60) {
+  MotionSpec s = make_spec("reach", frames);
+  s.reach_target = {x, y, z};
+  return s;
+}
+
+double parameter(const MotionClip& clip, const std::string& name) {
+  for (const auto& [key, value] : clip.parameters) {
+    if (key == name) return value;
+  }
+  ADD_FAILURE() << "no parameter " << name;
+  return std::nan("");
+}
+
+Eigen::Vector3d joint(const MotionClip& clip, int frame, const std::string& name) {
+  const Skeleton& sk = performer().skeleton;
+  return forward_kinematics(sk, clip.poses[static_cast<std::size_t>(frame)])[static_cast<std::size_t>(sk.find(name))].translation();
+}
+
+// Vertices carried mostly by a foot (foot + toe joints) of one side.
+std::vector<int> foot_vertices(const std::string& side) {
+  const Character& c = performer();
+  const int foot = c.skeleton.find("foot_" + side), toe = c.skeleton.find("toe_" + side);
+  std::vector<int> out;
+  for (std::size_t v = 0; v < c.skin.weights.size(); ++v) {
+    float w = 0;
+    for (int k = 0; k < 4; ++k) {
+      if (c.skin.joints[v][k] == foot || c.skin.joints[v][k] == toe) w += c.skin.weights[v][k];
+    }
+    if (w > 0.99f) out.push_back(static_cast<int>(v));
+  }
+  return out;
+}
+
+std::vector<Mesh> skin_all(const MotionClip& clip) {
+  std::vector<Mesh> meshes;
+  for (const Pose& pose : clip.poses) {
+    meshes.push_back(skin_mesh(performer().skin, forward_kinematics(performer().skeleton, pose)));
+  }
+  return meshes;
+}
+
+float lowest(const Mesh& mesh, const std::vector<int>& vertices) {
+  float z = std::numeric_limits<float>::max();
+  for (int v : vertices) z = std::min(z, mesh.positions[static_cast<std::size_t>(v)].z());
+  return z;
+}
+
+constexpr float kContact = 0.005f;  // a foot touches the floor when its lowest point is this low
+
+// For each run of frames in which a foot touches the floor: some point of the sole that is on
+// the floor mid-run stays within `worst` (horizontally) of where it was mid-run, for the whole
+// run. Returns the largest such drift over all runs and both feet.
+double worst_stance_drift(const std::vector<Mesh>& meshes, int* runs) {
+  double worst = 0;
+  *runs = 0;
+  for (const std::string side : {"l", "r"}) {
+    const std::vector<int> foot = foot_vertices(side);
+    const int n = static_cast<int>(meshes.size());
+    for (int f = 0; f < n;) {
+      if (lowest(meshes[f], foot) > kContact) {
+        ++f;
+        continue;
+      }
+      int end = f;
+      while (end < n && lowest(meshes[end], foot) <= kContact) ++end;
+      const int mid = (f + end - 1) / 2;
+      double best = std::numeric_limits<double>::max();
+      for (int v : foot) {
+        const Vec3f& p = meshes[mid].positions[static_cast<std::size_t>(v)];
+        if (p.z() > kContact) continue;
+        double drift = 0;
+        for (int g = f; g < end; ++g) {
+          drift = std::max(drift, static_cast<double>((meshes[g].positions[static_cast<std::size_t>(v)] - p).head<2>().norm()));
+        }
+        best = std::min(best, drift);
+      }
+      worst = std::max(worst, best);
+      ++*runs;
+      f = end;
+    }
+  }
+  return worst;
+}
+
+// Frames in which neither foot touches the floor.
+int flight_frames(const std::vector<Mesh>& meshes) {
+  const auto left = foot_vertices("l"), right = foot_vertices("r");
+  int count = 0;
+  for (const Mesh& m : meshes) count += lowest(m, left) > kContact && lowest(m, right) > kContact;
+  return count;
+}
+
+float lowest_vertex(const std::vector<Mesh>& meshes) {
+  float z = std::numeric_limits<float>::max();
+  for (const Mesh& m : meshes) {
+    for (const Vec3f& p : m.positions) z = std::min(z, p.z());
+  }
+  return z;
+}
+
+void expect_continuous(const MotionClip& clip, double max_step) {
+  ASSERT_EQ(clip.poses.size(), static_cast<std::size_t>(clip.spec.frames));
+  ASSERT_EQ(clip.root.size(), clip.poses.size());
+  ASSERT_EQ(clip.phase.size(), clip.poses.size());
+  const Skeleton& sk = performer().skeleton;
+  auto previous = forward_kinematics(sk, clip.poses[0]);
+  for (std::size_t f = 1; f < clip.poses.size(); ++f) {
+    const auto world = forward_kinematics(sk, clip.poses[f]);
+    for (std::size_t j = 0; j < world.size(); ++j) {
+      EXPECT_LT((world[j].translation() - previous[j].translation()).norm(), max_step)
+          << clip.spec.take << " joint " << sk.names[j] << " frame " << f;
+    }
+    previous = world;
+    EXPECT_GE(clip.phase[f], 0.0);
+    EXPECT_LT(clip.phase[f], 1.0);
+  }
+}
+
+TEST(Motion, WalkSpeedIsExactAndStrideAndCadenceGrowWithSpeed) {
+  double previous_speed = 0, previous_stride = 0, previous_cycle = 1e9;
+  for (double speed : {0.8, 1.3, 1.8}) {
+    const MotionClip clip = generate_motion(performer().skeleton, walk(speed), kFps);
+    EXPECT_NEAR(parameter(clip, "speed"), speed, 1e-6 * speed);
+    EXPECT_NEAR(parameter(clip, "direction_deg_per_s"), 0.0, 1e-9);
+    // Independently: the pelvis over whole cycles travels at the speed (its sway averages out).
+    const int cycle = static_cast<int>(clip.cycle_frames);
+    ASSERT_EQ(clip.cycle_frames, cycle);
+    const int whole = (clip.spec.frames - 1) / cycle * cycle;
+    ASSERT_GT(whole, 0);
+    const double pelvis_speed = (joint(clip, whole, "pelvis") - joint(clip, 0, "pelvis")).head<2>().norm() / (whole / kFps);
+    EXPECT_NEAR(pelvis_speed, speed, 1e-6);
+    EXPECT_GT(pelvis_speed, previous_speed);
+    // Stride: one left foot's stance to the next, one cycle apart.
+    const double stride = (joint(clip, cycle + 3, "toe_l") - joint(clip, 3, "toe_l")).head<2>().norm();
+    EXPECT_NEAR(stride, speed * cycle / kFps, 1e-6);
+    EXPECT_GT(stride, previous_stride);
+    EXPECT_LT(clip.cycle_frames, previous_cycle + 1e-9);
+    EXPECT_GT(stride, 0.8);  // plausible human strides
+    EXPECT_LT(stride, 2.0);
+    previous_speed = pelvis_speed;
+    previous_stride = stride;
+    previous_cycle = clip.cycle_frames;
+  }
+}
+
+TEST(Motion, WalkKeepsFeetPlantedAndAboveTheFloor) {
+  const MotionClip clip = generate_motion(performer().skeleton, walk(1.3), kFps);
+  const auto meshes = skin_all(clip);
+  int runs = 0;
+  EXPECT_LT(worst_stance_drift(meshes, &runs), 0.02);
+  EXPECT_GE(runs, 4);
+  EXPECT_GE(lowest_vertex(meshes), -0.01f);
+  EXPECT_EQ(flight_frames(meshes), 0);  // walking: always a foot on the floor
+  expect_continuous(clip, 0.12);
+}
+
+TEST(Motion, RunHasFlightPhasesAndExactSpeed) {
+  for (double speed : {2.5, 3.5}) {
+    const MotionClip clip = generate_motion(performer().skeleton, run(speed), kFps);
+    EXPECT_NEAR(parameter(clip, "speed"), speed, 1e-6 * speed);
+    const auto meshes = skin_all(clip);
+    EXPECT_GT(flight_frames(meshes), 4) << speed;
+    int runs = 0;
+    EXPECT_LT(worst_stance_drift(meshes, &runs), 0.03);
+    EXPECT_GE(runs, 4);
+    EXPECT_GE(lowest_vertex(meshes), -0.01f);
+    expect_continuous(clip, 0.3);
+  }
+  // Running strides are longer and quicker than walking ones.
+  const MotionClip w = generate_motion(performer().skeleton, walk(1.8), kFps);
+  const MotionClip r = generate_motion(performer().skeleton, run(3.0), kFps);
+  EXPECT_LT(r.cycle_frames, w.cycle_frames);
+}
+
+TEST(Motion, TurnFollowsACircularArcAtTheTurnRate) {
+  for (double rate : {45.0, -30.0}) {
+    MotionSpec spec = turn(1.0, rate);
+    spec.start_heading = 20;
+    spec.start_position = {0.5, -0.3};
+    const MotionClip clip = generate_motion(performer().skeleton, spec, kFps);
+    EXPECT_NEAR(parameter(clip, "direction_deg_per_s"), rate, 1e-6);
+    EXPECT_NEAR(parameter(clip, "speed"), 1.0, 1e-4);  // chords of the arc: 1 - (w dt)^2 / 24
+    const double omega = rate * M_PI / 180, radius = 1.0 / omega;
+    const double h0 = 20 * M_PI / 180;
+    const Eigen::Vector2d centre = Eigen::Vector2d(0.5, -0.3) + radius * Eigen::Vector2d(-std::sin(h0), std::cos(h0));
+    for (int f = 0; f < spec.frames; ++f) {
+      const RootState& r = clip.root[static_cast<std::size_t>(f)];
+      // Heading change = rate * time, exactly; the root stays on the circle.
+      EXPECT_NEAR(r.heading - h0, omega * f / kFps, 1e-9);
+      EXPECT_NEAR((r.position - centre).norm(), std::abs(radius), 1e-9);
+      // The pelvis faces along the root's heading, give or take the gait's hip rotation.
+      const Eigen::Matrix3d pelvis = clip.poses[static_cast<std::size_t>(f)].local_rotations[0].toRotationMatrix();
+      const Eigen::Vector3d forward = pelvis.col(0);
+      EXPECT_LT(std::abs(std::remainder(std::atan2(forward.y(), forward.x()) - r.heading, 2 * M_PI)), 12 * M_PI / 180);
+      EXPECT_LT((clip.poses[static_cast<std::size_t>(f)].root_position.head<2>() - r.position).norm(), 0.06);
+    }
+    const auto meshes = skin_all(clip);
+    int runs = 0;
+    EXPECT_LT(worst_stance_drift(meshes, &runs), 0.02);
+    EXPECT_GE(runs, 4);
+    EXPECT_GE(lowest_vertex(meshes), -0.01f);
+    expect_continuous(clip, 0.12);
+  }
+}
+
+TEST(Motion, JumpHasExactLengthAndApexHeight) {
+  struct Case {
+    double length, height;
+  };
+  for (const Case c : {Case{0.6, 0.15}, Case{1.2, 0.35}, Case{0.0, 0.25}}) {
+    MotionSpec spec = jump(c.length, c.height);
+    spec.start_heading = -90;
+    const MotionClip clip = generate_motion(performer().skeleton, spec, kFps);
+    EXPECT_NEAR(parameter(clip, "jump_length"), c.length, 1e-6);
+    EXPECT_NEAR(parameter(clip, "jump_height"), c.height, 1e-6);
+    // Independently: the feet stand `length` further along the heading (-y) afterwards...
+    const int last = spec.frames - 1;
+    for (const char* foot : {"foot_l", "foot_r"}) {
+      const Eigen::Vector3d moved = joint(clip, last, foot) - joint(clip, 0, foot);
+      EXPECT_NEAR(moved.x(), 0.0, 1e-6);
+      EXPECT_NEAR(-moved.y(), c.length, 1e-6);
+      EXPECT_NEAR(moved.z(), 0.0, 1e-6);
+    }
+    // ...and the pelvis rises exactly `height` above standing, on a ballistic arc.
+    double top = 0;
+    int apex = 0;
+    for (int f = 0; f <= last; ++f) {
+      const double rise = joint(clip, f, "pelvis").z() - joint(clip, 0, "pelvis").z();
+      if (rise > top) {
+        top = rise;
+        apex = f;
+      }
+    }
+    EXPECT_NEAR(top, c.height, 1e-6);
+    const double z0 = joint(clip, apex - 1, "pelvis").z(), z1 = joint(clip, apex, "pelvis").z(),
+                 z2 = joint(clip, apex + 1, "pelvis").z();
+    EXPECT_NEAR(z0 - 2 * z1 + z2, -kGravity / (kFps * kFps), 1e-9);
+    const auto meshes = skin_all(clip);
+    EXPECT_GT(flight_frames(meshes), 2);
+    int runs = 0;
+    EXPECT_LT(worst_stance_drift(meshes, &runs), 0.02);
+    EXPECT_EQ(runs, 4);  // both feet before and after
+    EXPECT_GE(lowest_vertex(meshes), -0.01f);
+    expect_continuous(clip, 0.25);
+  }
+}
+
+TEST(Motion, ReachBringsThePalmToTheTarget) {
+  const std::vector<Eigen::Vector3d> targets = {
+      {0.5, -0.2, 1.0}, {0.45, -0.25, 0.3}, {0.3, -0.2, 1.95}, {0.45, 0.15, 1.2}, {0.6, -0.35, 1.4}};
+  for (const Eigen::Vector3d& t : targets) {
+    MotionSpec spec = reach(t.x(), t.y(), t.z());
+    spec.start_heading = 30;
+    spec.start_position = {1, 2};
+    const MotionClip clip = generate_motion(performer().skeleton, spec, kFps);
+    EXPECT_NEAR(parameter(clip, "reach_x"), t.x(), 1e-6);
+    EXPECT_NEAR(parameter(clip, "reach_y"), t.y(), 1e-6);
+    EXPECT_NEAR(parameter(clip, "reach_z"), t.z(), 1e-6);
+    // Independently, in the world: the palm comes within 1 cm of the target and goes back.
+    const double h = 30 * M_PI / 180;
+    const Eigen::Vector3d world(1 + std::cos(h) * t.x() - std::sin(h) * t.y(), 2 + std::sin(h) * t.x() + std::cos(h) * t.y(), t.z());
+    double closest = 1e9;
+    for (const Pose& pose : clip.poses) {
+      closest = std::min(closest, (right_palm_position(performer().skeleton, forward_kinematics(performer().skeleton, pose)) - world).norm());
+    }
+    EXPECT_LT(closest, 0.01) << t.transpose();
+    const auto first = forward_kinematics(performer().skeleton, clip.poses.front());
+    const auto last = forward_kinematics(performer().skeleton, clip.poses.back());
+    EXPECT_LT((right_palm_position(performer().skeleton, first) - right_palm_position(performer().skeleton, last)).norm(), 1e-6);
+    EXPECT_GT((right_palm_position(performer().skeleton, first) - world).norm(), 0.2);
+    const auto meshes = skin_all(clip);
+    int runs = 0;
+    EXPECT_LT(worst_stance_drift(meshes, &runs), 0.01);
+    EXPECT_EQ(runs, 2);  // feet never leave the floor
+    EXPECT_GE(lowest_vertex(meshes), -0.01f);
+    expect_continuous(clip, 0.15);
+  }
+}
+
+TEST(Motion, StartStateAndPhase) {
+  MotionSpec spec = walk(1.2, 40);
+  spec.start_heading = 90;
+  spec.start_position = {2, 3};
+  spec.start_phase = 0.25;
+  const MotionClip clip = generate_motion(performer().skeleton, spec, kFps);
+  EXPECT_NEAR(clip.root[0].position.x(), 2, 1e-12);
+  EXPECT_NEAR(clip.root[0].position.y(), 3, 1e-12);
+  EXPECT_NEAR(clip.root[0].heading, M_PI / 2, 1e-12);
+  // Heading 90 degrees: walking along +y.
+  EXPECT_NEAR(clip.root.back().position.x(), 2, 1e-9);
+  EXPECT_NEAR(clip.root.back().position.y(), 3 + 1.2 * 39 / kFps, 1e-9);
+  EXPECT_NEAR(clip.phase[0], 0.25, 1e-12);
+  for (std::size_t f = 1; f < clip.phase.size(); ++f) {
+    EXPECT_NEAR(std::remainder(clip.phase[f] - clip.phase[f - 1] - 1.0 / clip.cycle_frames, 1.0), 0.0, 1e-12);
+  }
+  // The same gait, shifted in time: phase 0.25 at frame 0 is the pose of the phase-0 take
+  // a quarter cycle in (relative to the root).
+  MotionSpec base = walk(1.2, 40);
+  const MotionClip b = generate_motion(performer().skeleton, base, kFps);
+  const int quarter = static_cast<int>(clip.cycle_frames) / 4;
+  if (static_cast<int>(clip.cycle_frames) % 4 == 0) {
+    for (std::size_t j = 1; j < clip.poses[0].local_rotations.size(); ++j) {
+      EXPECT_TRUE(clip.poses[0].local_rotations[j].isApprox(b.poses[static_cast<std::size_t>(quarter)].local_rotations[j], 1e-9));
+    }
+  }
+}
+
+TEST(Motion, Deterministic) {
+  for (const MotionSpec& spec : {walk(1.1), run(3.0), turn(1.0, 30), jump(1.0, 0.3), reach(0.5, -0.2, 1.1)}) {
+    const MotionClip a = generate_motion(performer().skeleton, spec, kFps);
+    const MotionClip b = generate_motion(performer().skeleton, spec, kFps);
+    ASSERT_EQ(a.poses.size(), b.poses.size());
+    for (std::size_t f = 0; f < a.poses.size(); ++f) {
+      EXPECT_EQ(a.poses[f].root_position, b.poses[f].root_position);
+      for (std::size_t j = 0; j < a.poses[f].local_rotations.size(); ++j) {
+        EXPECT_EQ(a.poses[f].local_rotations[j].coeffs(), b.poses[f].local_rotations[j].coeffs());
+      }
+    }
+    EXPECT_EQ(a.parameters, b.parameters);
+  }
+}
+
+TEST(Motion, RootHeadingIsContinuous) {
+  for (const MotionSpec& spec : {walk(1.1), run(3.0), turn(1.2, -60, 200), jump(1.0, 0.3), reach(0.5, -0.2, 1.1)}) {
+    const MotionClip clip = generate_motion(performer().skeleton, spec, kFps);
+    const double per_frame = std::abs(spec.kind == "turn" ? spec.turn_rate : 0.0) * M_PI / 180 / kFps;
+    for (std::size_t f = 1; f < clip.root.size(); ++f) {
+      EXPECT_NEAR(std::abs(clip.root[f].heading - clip.root[f - 1].heading), per_frame, 1e-12) << spec.take;
+    }
+  }
+}
+
+TEST(Motion, RejectsImpossibleSpecs) {
+  const Skeleton& sk = performer().skeleton;
+  EXPECT_THROW(generate_motion(sk, make_spec("dance", 30), kFps), ConfigError);
+  EXPECT_THROW(generate_motion(sk, jump(1.0, 0.3, 10), kFps), ConfigError);  // too short
+  EXPECT_THROW(generate_motion(sk, reach(0.5, -0.2, 3.0), kFps), ConfigError);
+  EXPECT_THROW(generate_motion(sk, reach(0.5, -0.2, 1.0, 20), kFps), ConfigError);
+  EXPECT_THROW(generate_motion(sk, run(0.5), kFps), ConfigError);
+  MotionSpec bad = walk(1.0);
+  bad.reach_target = {1, 2};
+  EXPECT_THROW(generate_motion(sk, bad, kFps), ConfigError);
+  Skeleton other;
+  other.names = {"root"};
+  other.parents = {-1};
+  other.rest_offsets = {Eigen::Vector3d::Zero()};
+  EXPECT_THROW(generate_motion(other, walk(1.0), kFps), InputError);
+}
+
+TEST(Motion, DebugViews) {
+  if (debug_view::debug_dir().empty()) GTEST_SKIP() << "set FOURD_SYNTH_DEBUG_DIR to write views";
+  const Character& c = performer();
+  for (const MotionSpec& spec : {walk(1.3, 28), run(3.0, 19), turn(1.0, 45, 60), jump(1.2, 0.3), reach(0.45, -0.25, 0.3)}) {
+    const MotionClip clip = generate_motion(c.skeleton, spec, kFps);
+    std::vector<cv::Mat> side, front;
+    const int shown = 8, step = std::max(1, spec.frames / shown);
+    for (int f = 0; f < spec.frames && static_cast<int>(side.size()) < shown; f += step) {
+      const Mesh m = skin_mesh(c.skin, forward_kinematics(c.skeleton, clip.poses[static_cast<std::size_t>(f)]));
+      const double h = clip.root[static_cast<std::size_t>(f)].heading;
+      const Eigen::Vector3f fwd(std::cos(h), std::sin(h), 0), left(-std::sin(h), std::cos(h), 0);
+      const Eigen::Vector3f centre(clip.poses[static_cast<std::size_t>(f)].root_position.x(),
+                                   clip.poses[static_cast<std::size_t>(f)].root_position.y(), 0.9f);
+      side.push_back(debug_view::render_orthographic(m, c.texture, -left, fwd, centre, 120, 240, 250));
+      front.push_back(debug_view::render_orthographic(m, c.texture, fwd, -left, centre, 120, 240, 250));
+    }
+    cv::Mat a, b, both;
+    cv::hconcat(side, a);
+    cv::hconcat(front, b);
+    cv::vconcat(a, b, both);
+    debug_view::write_debug_image("motion_" + spec.take + ".png", both);
+  }
+}
+
+}  // namespace
+}  // namespace fourd::synth
