@@ -83,8 +83,14 @@ std::string read_file(const fs::path& path) {
     if (!fs::exists(path)) throw IoError(fmt::format("{}: file does not exist", path.string()));
     throw IoError(fmt::format("{}: cannot open for reading", path.string()));
   }
-  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) throw IoError(fmt::format("{}: read error", path.string()));
+  std::error_code ec;
+  const auto size = fs::file_size(path, ec);
+  if (ec) throw IoError(fmt::format("{}: cannot read size: {}", path.string(), ec.message()));
+  std::string bytes(size, '\0');
+  in.read(bytes.data(), static_cast<std::streamsize>(size));
+  if (static_cast<std::size_t>(in.gcount()) != size) {
+    throw IoError(fmt::format("{}: read error (got {} of {} bytes)", path.string(), in.gcount(), size));
+  }
   return bytes;
 }
 

@@ -42,6 +42,9 @@ struct SessionConfig {
   double fps = 25;  // capture frame rate [frames/s]
   std::vector<MotionClassConfig> motions;
   std::vector<TransitionConfig> transitions;
+  // Stages that also run on inputs derived from ground truth (synthetic sessions; DESIGN.md
+  // "Oracle inputs"), so validation reports pipeline and oracle numbers side by side.
+  std::vector<std::string> oracle;
   // Per-stage sections, each mapped by its stage onto its own options struct.
   YAML::Node stages;
 
@@ -51,6 +54,7 @@ struct SessionConfig {
     v("fps", fps, "capture frame rate [frames/s]", Range{1, 1000});
     v("motions", motions, "motion classes (parametric motion spaces)");
     v("transitions", transitions, "transitions the motion graph allows");
+    v("oracle", oracle, "stages that also run on ground-truth-derived inputs (validation)");
     v("stages", stages, "per-stage options");
   }
   void check() const;  // unique names; transitions name known classes

@@ -142,13 +142,8 @@ std::string local_time_now() {
   return buf;
 }
 
-// capture/ holds frames but ground_truth/ does not exist: frames synth did not make.
-bool holds_real_capture(const fs::path& root) {
-  std::error_code ec;
-  if (fs::exists(root / kOracleFolder, ec)) return false;
-  return !list_files(root, {"capture"}).empty();
-}
-
+// Whether a stage reading `inputs` reads one of `folders` (folder -> the stage that writes
+// it); `which` names that stage.
 bool reads_any(const std::vector<std::string>& inputs,
                const std::map<std::string, std::string>& folders, std::string* which) {
   for (const auto& in : inputs) {
@@ -172,11 +167,14 @@ const std::vector<StageSpec>& stage_table() {
       {"reconstruct", {"capture", "segment", "calibration"}, {"reconstruct"}, true, {}},
       {"align", {"reconstruct"}, {"align"}, true, {}},
       {"timewarp", {"align"}, {"timewarp"}, true, {}},
+      {"motionspace", {"timewarp"}, {"motionspace"}, true, {}},
       {"texture", {"align", "capture", "calibration"}, {"texture"}, true, {}},
-      {"graph", {"timewarp", "texture"}, {"graph", "asset"}, true, {}},
+      {"graph", {"motionspace", "texture"}, {"graph", "asset"}, true, {}},
       {"validate",
        {"calibration", "capture", "ground_truth", "segment", "reconstruct", "align", "timewarp",
-        "texture", "graph", "asset"},
+        "motionspace", "texture", "graph", "asset", "oracle", "reconstruct_oracle",
+        "align_oracle", "timewarp_oracle", "motionspace_oracle", "texture_oracle",
+        "graph_oracle"},
        {"reports"},
        false,
        {}},
@@ -224,12 +222,68 @@ fs::path record_path(const fs::path& session_root, const StageSpec& stage) {
   return session_root / stage.outputs.front() / kRecordFile;
 }
 
-std::vector<std::string> effective_inputs(const StageSpec& stage, const std::string& oracle) {
-  std::vector<std::string> inputs = stage.inputs;
-  if (!oracle.empty() && std::find(inputs.begin(), inputs.end(), oracle) == inputs.end()) {
-    inputs.push_back(oracle);
+std::vector<StageSpec> with_oracle_variants(const fs::path& session_root,
+                                            const std::vector<StageSpec>& plan,
+                                            const std::vector<StageSpec>& built,
+                                            const std::set<std::string>& oracle) {
+  if (oracle.empty()) return plan;
+  // Folder -> the built stage that writes it (synth's folders are the raw data, not outputs).
+  std::map<std::string, std::string> producer;
+  for (const auto& s : built) {
+    if (s.name == "synth") continue;
+    for (const auto& out : s.outputs) producer[out] = s.name;
   }
-  return inputs;
+  std::vector<StageSpec> out;
+  bool prepared = false;
+  for (const auto& stage : plan) {
+    out.push_back(stage);
+    if (!oracle.count(stage.name)) continue;
+    if (!stage.supports_oracle) {
+      std::vector<std::string> can;
+      for (const auto& s : built) {
+        if (s.supports_oracle) can.push_back(s.name);
+      }
+      throw UsageError(fmt::format(
+          "--oracle {}: stage '{}' cannot take ground-truth inputs; stages that can: {}",
+          stage.name, stage.name, can.empty() ? "none built" : join(can)));
+    }
+    if (!prepared) {
+      auto validate = std::find_if(built.begin(), built.end(),
+                                   [](const StageSpec& s) { return s.name == "validate"; });
+      if (validate == built.end()) {
+        throw UsageError("oracle runs need fourd-validate, which prepares their inputs");
+      }
+      StageSpec prepare;
+      prepare.name = kOracleFolder;
+      prepare.inputs = {"ground_truth"};
+      prepare.outputs = {kOracleFolder};
+      prepare.executable = validate->executable;
+      prepare.arguments = {"--prepare-oracle"};
+      out.insert(out.end() - 1, prepare);
+      prepared = true;
+    }
+    StageSpec variant = stage;
+    variant.name = oracle_variant_name(stage.name);
+    variant.options_stage = stage.name;
+    variant.arguments = {"--oracle"};
+    variant.outputs = {oracle_variant_name(stage.name)};
+    variant.supports_oracle = false;
+    // The same rule as stage_input_dir() in the stages: the oracle run of the producing stage
+    // when there is one, else the ground-truth-derived copy under oracle/.
+    for (auto& input : variant.inputs) {
+      auto p = producer.find(input);
+      if (p == producer.end()) continue;
+      std::error_code ec;
+      std::string chained = oracle_variant_name(input);
+      if (oracle.count(p->second) || fs::is_directory(session_root / chained, ec)) {
+        input = chained;
+      } else {
+        input = std::string(kOracleFolder) + "/" + input;
+      }
+    }
+    out.push_back(std::move(variant));
+  }
+  return out;
 }
 
 FileHashes hash_folders(const fs::path& session_root, const std::vector<std::string>& folders) {
@@ -260,13 +314,12 @@ std::string options_hash(const Session& session, const std::string& stage) {
   return hash_hex(hash_bytes(text));
 }
 
-StageFingerprint fingerprint(const Session& session, const StageSpec& stage,
-                             const std::string& oracle) {
+StageFingerprint fingerprint(const Session& session, const StageSpec& stage) {
   StageFingerprint fp;
-  fp.inputs = hash_folders(session.root(), effective_inputs(stage, oracle));
-  fp.options_hash = options_hash(session, stage.name);
+  fp.inputs = hash_folders(session.root(), stage.inputs);
+  fp.options_hash =
+      options_hash(session, stage.options_stage.empty() ? stage.name : stage.options_stage);
   if (!stage.executable.empty()) fp.executable_hash = hash_hex(hash_file(stage.executable));
-  fp.oracle = oracle;
   return fp;
 }
 
@@ -281,7 +334,6 @@ std::optional<CompletionRecord> read_record(const fs::path& path) {
     }
     CompletionRecord r;
     r.stage = j.at("stage").get<std::string>();
-    r.fingerprint.oracle = j.at("oracle").get<std::string>();
     r.fingerprint.options_hash = j.at("options_hash").get<std::string>();
     r.fingerprint.executable_hash = j.at("executable_hash").get<std::string>();
     r.fingerprint.inputs = hashes_from_json(j.at("inputs"));
@@ -302,7 +354,6 @@ void write_record(const fs::path& path, const CompletionRecord& r) {
   j["format"] = kRecordFormat;
   j["version"] = kRecordVersion;
   j["stage"] = r.stage;
-  j["oracle"] = r.fingerprint.oracle;
   j["options_hash"] = r.fingerprint.options_hash;
   j["executable_hash"] = r.fingerprint.executable_hash;
   j["finished"] = r.finished;
@@ -326,9 +377,6 @@ std::string staleness(const fs::path& session_root, const StageSpec& stage,
   const StageFingerprint& before = record->fingerprint;
   if (record->stage != stage.name)
     return fmt::format("completion record is for stage '{}'", record->stage);
-  if (before.oracle != current.oracle) {
-    return current.oracle.empty() ? "oracle inputs switched off" : "oracle inputs switched on";
-  }
   if (before.executable_hash != current.executable_hash) return "stage executable changed";
   if (before.options_hash != current.options_hash) return "options changed (session.yaml)";
   if (before.inputs != current.inputs)
@@ -336,6 +384,18 @@ std::string staleness(const fs::path& session_root, const StageSpec& stage,
   FileHashes outputs = hash_folders(session_root, stage.outputs);
   if (outputs != record->outputs) return describe_difference("outputs", record->outputs, outputs);
   return "";
+}
+
+// The stages session.yaml's `oracle:` names that are built (an unbuilt one is simply absent,
+// like the stage itself).
+std::set<std::string> configured_oracle(const Session& session, const std::vector<StageSpec>& built) {
+  std::set<std::string> out;
+  for (const auto& name : session.config().oracle) {
+    if (std::any_of(built.begin(), built.end(), [&](const StageSpec& s) { return s.name == name; })) {
+      out.insert(name);
+    }
+  }
+  return out;
 }
 
 bool session_uses_synth(const Session& session) {
@@ -348,18 +408,9 @@ std::vector<StageSpec> plan_run(const Session& session, const std::vector<StageS
   if (!request.only.empty() && !request.from.empty()) {
     throw UsageError("--only and --from cannot be combined");
   }
-  for (const auto& name : request.oracle) {
-    const StageSpec& spec = built[find_stage(built, name)];
-    if (!spec.supports_oracle) {
-      std::vector<std::string> can;
-      for (const auto& s : built) {
-        if (s.supports_oracle) can.push_back(s.name);
-      }
-      throw UsageError(fmt::format(
-          "--oracle {}: stage '{}' cannot take ground-truth inputs; stages that can: {}", name,
-          name, can.empty() ? "none built" : join(can)));
-    }
-  }
+  for (const auto& name : request.oracle) find_stage(built, name);  // known and built
+  std::set<std::string> oracle = request.oracle;
+  for (const auto& name : configured_oracle(session, built)) oracle.insert(name);
   bool uses_synth = session_uses_synth(session);
   std::vector<StageSpec> plan;
   if (!request.only.empty()) {
@@ -378,7 +429,7 @@ std::vector<StageSpec> plan_run(const Session& session, const std::vector<StageS
       plan.push_back(built[i]);
     }
   }
-  // An oracle request for a stage that will not run is almost certainly a mistake.
+  // An oracle request (on the command line) for a stage that will not run is a mistake.
   for (const auto& name : request.oracle) {
     if (std::none_of(plan.begin(), plan.end(),
                      [&](const StageSpec& s) { return s.name == name; })) {
@@ -386,16 +437,13 @@ std::vector<StageSpec> plan_run(const Session& session, const std::vector<StageS
                                    name, name, join(stage_names(plan))));
     }
   }
-  return plan;
+  return with_oracle_variants(session.root(), plan, built, oracle);
 }
 
-int run_stage_process(const StageSpec& stage, const fs::path& session_root,
-                      const std::string& oracle, int threads, bool verbose) {
+int run_stage_process(const StageSpec& stage, const fs::path& session_root, int threads,
+                      bool verbose) {
   std::vector<std::string> args = {stage.executable.string(), session_root.string()};
-  if (!oracle.empty()) {
-    args.push_back("--oracle");
-    args.push_back(oracle);
-  }
+  args.insert(args.end(), stage.arguments.begin(), stage.arguments.end());
   if (threads > 0) {
     args.push_back("--threads");
     args.push_back(std::to_string(threads));
@@ -446,21 +494,13 @@ RunResult run_pipeline(const fs::path& session_dir, const std::vector<StageSpec>
       if (on_event) on_event(event);
     };
 
-    if (stage.name == "synth" && holds_real_capture(root)) {
-      throw InputError(fmt::format(
-          "{}: holds frames that synth did not make (there is no ground_truth/ folder) and "
-          "synth would replace them. Remove the stages.synth section from session.yaml to "
-          "process this capture, or move capture/ away to synthesize a new one",
-          (root / "capture").string()));
-    }
-
-    std::string oracle = request.oracle.count(stage.name) ? kOracleFolder : "";
-    StageFingerprint fp = fingerprint(session, stage, oracle);
+    // synth itself refuses to overwrite a capture/ it did not make (its .synthetic marker).
+    StageFingerprint fp = fingerprint(session, stage);
     std::string upstream;
     std::string reason;
     if (request.force) {
       reason = "forced";
-    } else if (reads_any(effective_inputs(stage, oracle), rewritten, &upstream)) {
+    } else if (reads_any(stage.inputs, rewritten, &upstream)) {
       reason = fmt::format("upstream stage {} ran", upstream);
     } else {
       reason = staleness(root, stage, fp);
@@ -481,7 +521,7 @@ RunResult run_pipeline(const fs::path& session_dir, const std::vector<StageSpec>
     event.reason = reason;
     emit(StageEvent::Kind::kStarted);
     log::Timer timer;
-    int code = run_stage_process(stage, root, oracle, request.threads, request.verbose);
+    int code = run_stage_process(stage, root, request.threads, request.verbose);
     event.seconds = timer.seconds();
     if (code != 0) {
       event.exit_code = code;
@@ -532,7 +572,8 @@ std::vector<StageStatus> session_status(const fs::path& session_dir,
   // Folder -> the stage that would rewrite it on the next run.
   std::map<std::string, std::string> pending;
   std::vector<StageStatus> table;
-  for (const auto& stage : built) {
+  for (const auto& stage :
+       with_oracle_variants(root, built, built, configured_oracle(session, built))) {
     StageStatus s;
     s.stage = stage.name;
     s.output_bytes = folder_bytes(root, stage.outputs);
@@ -555,10 +596,9 @@ std::vector<StageStatus> session_status(const fs::path& session_dir,
         s.state = StageStatus::State::kNotRun;
       }
     } else {
-      const std::string& oracle = s.record->fingerprint.oracle;
-      std::string reason = staleness(root, stage, fingerprint(session, stage, oracle));
+      std::string reason = staleness(root, stage, fingerprint(session, stage));
       std::string upstream;
-      if (reason.empty() && reads_any(effective_inputs(stage, oracle), pending, &upstream)) {
+      if (reason.empty() && reads_any(stage.inputs, pending, &upstream)) {
         reason = fmt::format("upstream stage {} will rerun", upstream);
       }
       s.state = reason.empty() ? StageStatus::State::kDone : StageStatus::State::kChanged;

@@ -6,7 +6,15 @@
 // `<first output folder>/.fourd_stage.json`, LAST (atomically). It holds the content hash of
 // every input file, a hash of the options the stage sees (its `stages.<name>` section of
 // session.yaml plus the top-level session config, both re-emitted canonically), the hash of the
-// stage executable, the oracle setting, and the hash of every output file. A stage is skipped
+// stage executable, and the hash of every output file.
+//
+// Oracle runs (DESIGN.md "Oracle inputs"). A stage X asked for with --oracle X (or listed in
+// session.yaml's `oracle:`) runs a second time as the variant "X_oracle": `fourd-X --oracle`,
+// reading inputs derived from ground truth and writing X_oracle/, so validation can report the
+// pipeline and the oracle numbers side by side. The ground-truth-derived inputs are made by the
+// step "oracle" (`fourd-validate --prepare-oracle`, writing oracle/segment, oracle/reconstruct
+// and oracle/align); an oracle variant reads those, or the _oracle output of the oracle variant
+// of its input stage further down the chain (timewarp_oracle -> motionspace_oracle ...). A stage is skipped
 // when all of these still match; it runs when any differs, when its record is missing (the
 // driver deletes the record before starting a stage, so a crashed run never looks complete),
 // when an upstream stage ran in the same invocation, or when --force is given.
@@ -38,12 +46,14 @@ struct StageSpec {
   std::string name;                  // "segment"; its executable is fourd-<name>
   std::vector<std::string> inputs;   // session sub-folders it reads
   std::vector<std::string> outputs;  // sub-folders it writes; the first holds its record
-  bool supports_oracle = false;      // accepts --oracle ground_truth (DESIGN "Oracle inputs")
+  bool supports_oracle = false;      // accepts --oracle (DESIGN "Oracle inputs")
   fs::path executable;               // empty in stage_table(); set by built_stages()
+  std::vector<std::string> arguments;  // extra command-line arguments (oracle runs)
+  std::string options_stage;           // whose stages.<name> options it sees; empty: name
 };
 
-// The folder that replaces a stage's inputs in oracle mode.
-inline constexpr const char* kOracleFolder = "ground_truth";
+// The folder of ground-truth-derived inputs, written by the "oracle" step.
+inline constexpr const char* kOracleFolder = "oracle";
 // Completion record file name, inside the stage's first output folder.
 inline constexpr const char* kRecordFile = ".fourd_stage.json";
 
@@ -59,8 +69,19 @@ fs::path executable_dir();
 std::size_t find_stage(const std::vector<StageSpec>& stages, const std::string& name);
 
 fs::path record_path(const fs::path& session_root, const StageSpec& stage);
-// The folders a stage reads: its inputs, plus ground_truth/ when it runs on oracle inputs.
-std::vector<std::string> effective_inputs(const StageSpec& stage, const std::string& oracle);
+
+// "<stage>_oracle": the name and output folder of a stage's oracle run.
+inline std::string oracle_variant_name(const std::string& stage) { return stage + "_oracle"; }
+
+// The oracle variants of the stages named in `oracle`, inserted into `plan` right after their
+// stage, preceded by the oracle preparation step (run by `validate`, which must be in `built`).
+// A variant reads, for each input folder X written by a stage, X_oracle (when that stage runs
+// on oracle inputs too, or X_oracle exists) or else oracle/X. Throws UsageError for a stage
+// that cannot take oracle inputs.
+std::vector<StageSpec> with_oracle_variants(const fs::path& session_root,
+                                            const std::vector<StageSpec>& plan,
+                                            const std::vector<StageSpec>& built,
+                                            const std::set<std::string>& oracle);
 
 // Path relative to the session root ('/' separators) -> content hash (hex), sorted by path.
 using FileHashes = std::map<std::string, std::string>;
@@ -82,10 +103,8 @@ struct StageFingerprint {
   FileHashes inputs;
   std::string options_hash;
   std::string executable_hash;
-  std::string oracle;  // "" or kOracleFolder
 };
-StageFingerprint fingerprint(const Session& session, const StageSpec& stage,
-                             const std::string& oracle);
+StageFingerprint fingerprint(const Session& session, const StageSpec& stage);
 
 struct CompletionRecord {
   std::string stage;
@@ -111,7 +130,8 @@ struct RunRequest {
   std::string only;              // run just this stage
   std::string from;              // run this stage and every one after it
   bool force = false;            // rerun the selected stages even if up to date
-  std::set<std::string> oracle;  // stages fed ground truth (--oracle STAGE)
+  std::set<std::string> oracle;  // stages also run on oracle inputs (--oracle STAGE), besides
+                                 // those listed in session.yaml's `oracle:`
   int threads = 0;               // passed to the stages; 0 = all cores
   bool verbose = false;          // passed to the stages
 };
@@ -121,16 +141,17 @@ struct RunRequest {
 bool session_uses_synth(const Session& session);
 
 // The stages a run considers, in order: `built` narrowed by only/from, without synth when the
-// session does not use it. Throws UsageError for unknown names, --only with --from, an oracle
-// request for a stage that cannot take one, or --only synth on a real capture.
+// session does not use it, with the oracle variants of the requested stages. Throws UsageError
+// for unknown names, --only with --from, an oracle request for a stage that cannot take one,
+// or --only synth on a real capture.
 std::vector<StageSpec> plan_run(const Session& session, const std::vector<StageSpec>& built,
                                 const RunRequest& request);
 
 // Runs one stage executable as a child process (stderr and stdout shared with the driver):
-// `<executable> <session> [--oracle ground_truth] [--threads N] [-v]`. Returns its exit code,
+// `<executable> <session> [arguments...] [--threads N] [-v]`. Returns its exit code,
 // 128 + signal number when it was killed. Throws IoError when it cannot be started.
-int run_stage_process(const StageSpec& stage, const fs::path& session_root,
-                      const std::string& oracle, int threads, bool verbose);
+int run_stage_process(const StageSpec& stage, const fs::path& session_root, int threads,
+                      bool verbose);
 
 struct StageEvent {
   enum class Kind { kSkipped, kStarted, kFinished, kFailed };
@@ -168,8 +189,9 @@ struct StageStatus {
 };
 const char* state_name(StageStatus::State state);
 
-// The state of every built stage of the session, in order (InputError if it does not exist).
-// A done stage whose upstream stage would rerun is reported as changed.
+// The state of every built stage of the session (and of the oracle variants session.yaml asks
+// for), in order (InputError if it does not exist). A done stage whose upstream stage would
+// rerun is reported as changed.
 std::vector<StageStatus> session_status(const fs::path& session_dir,
                                         const std::vector<StageSpec>& built);
 

@@ -39,8 +39,7 @@ void print_event(const StageEvent& e) {
       log::info("[{}/{}] {} done in {:.1f} s", e.index, e.count, e.stage, e.seconds);
       break;
     case StageEvent::Kind::kFailed:
-      log::error("[{}/{}] {} failed after {:.1f} s with exit code {}; see {}", e.index, e.count,
-                 e.stage, e.seconds, e.exit_code, e.log_file.string());
+      log::error("[{}/{}] {} failed after {:.1f} s", e.index, e.count, e.stage, e.seconds);
       break;
   }
 }
@@ -61,16 +60,13 @@ int command_run(const std::string& session_dir, const RunRequest& request,
 
 int command_status(const std::string& session_dir, const std::vector<StageSpec>& built) {
   std::vector<StageStatus> table = session_status(session_dir, built);
-  fmt::print("{:<12} {:<21} {:<20} {:>9} {:>10}  {}\n", "stage", "state", "last run", "duration",
+  fmt::print("{:<18} {:<21} {:<20} {:>9} {:>10}  {}\n", "stage", "state", "last run", "duration",
              "outputs", "notes");
   for (const auto& s : table) {
     std::string when = s.record ? s.record->finished : "-";
     std::string took = s.record ? fmt::format("{:.1f} s", s.record->seconds) : "-";
     std::string notes = s.detail;
-    if (s.record && !s.record->fingerprint.oracle.empty()) {
-      notes = "oracle inputs" + (notes.empty() ? "" : "; " + notes);
-    }
-    fmt::print("{:<12} {:<21} {:<20} {:>9} {:>10}  {}\n", s.stage, state_name(s.state), when, took,
+    fmt::print("{:<18} {:<21} {:<20} {:>9} {:>10}  {}\n", s.stage, state_name(s.state), when, took,
                s.output_bytes ? human_bytes(s.output_bytes) : "-", notes);
   }
   return kExitOk;

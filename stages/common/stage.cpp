@@ -36,7 +36,13 @@ FrameSelection parse_frames(const std::string& take, const std::string& range) {
 
 std::filesystem::path stage_input_dir(const Session& session, const StageArgs& args,
                                       const std::string& input_stage) {
-  return args.oracle ? session.dir("oracle") / input_stage : session.dir(input_stage);
+  if (!args.oracle) return session.dir(input_stage);
+  // The oracle run of the input stage when there is one, else its ground-truth-derived copy
+  // (the same rule as the driver's with_oracle_variants()).
+  std::filesystem::path chained = session.dir(input_stage + "_oracle");
+  std::error_code ec;
+  if (std::filesystem::is_directory(chained, ec)) return chained;
+  return session.dir("oracle") / input_stage;
 }
 
 std::filesystem::path stage_output_dir(const Session& session, const StageArgs& args,

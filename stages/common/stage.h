@@ -23,9 +23,9 @@ struct FrameSelection {
 
 struct StageArgs {
   std::string session_dir;
-  // Validation mode (DESIGN.md "Oracle inputs"): read the inputs that `fourd-validate
-  // --prepare-oracle` derived from ground truth (oracle/<input stage>/) instead of the previous
-  // stage's outputs, and write to <stage>_oracle/ so pipeline and oracle results coexist.
+  // Validation mode (DESIGN.md "Oracle inputs"): read inputs derived from ground truth (see
+  // stage_input_dir) instead of the previous stage's outputs, and write to <stage>_oracle/ so
+  // pipeline and oracle results coexist.
   bool oracle = false;
   FrameSelection selection;
   int threads = 0;     // 0: all cores
@@ -39,8 +39,9 @@ struct StageInfo {
   bool supports_oracle = false;
 };
 
-// Folder a stage reads the outputs of `input_stage` from: <session>/<input_stage>, or
-// <session>/oracle/<input_stage> in oracle mode.
+// Folder a stage reads the outputs of `input_stage` from: <session>/<input_stage>; in oracle
+// mode <session>/<input_stage>_oracle when the input stage ran on oracle inputs too, else
+// <session>/oracle/<input_stage> (made from ground truth by `fourd-validate --prepare-oracle`).
 std::filesystem::path stage_input_dir(const Session& session, const StageArgs& args,
                                       const std::string& input_stage);
 // Folder a stage writes to: <session>/<stage>, or <session>/<stage>_oracle in oracle mode.
