@@ -72,15 +72,15 @@ void project_to_surface(const BodyModel& body, Mesh& mesh) {
 // closed surface has about 2 A / (sqrt(3) L^2) vertices for edge length L. A second, cheap
 // pass on the result corrects the edge length by the measured count.
 Mesh mesh_body(const BodyModel& body, int target_vertices) {
-  const double spacing = 0.012 * body.scale;
+  const double spacing = 0.014 * body.scale;
   Vector3d lo, hi;
   body_bounds(body, 3 * spacing + 3 * body.blend_radius, &lo, &hi);
-  const ScalarGrid grid =
-      detail::sample_field([&](const Vector3d& p) { return body_field(body, p); }, lo, hi, spacing);
+  const ScalarGrid grid = detail::sample_distance_field([&](const Vector3d& p) { return body_field(body, p); }, lo,
+                                                       hi, spacing, 1.5);
   const Mesh dense = detail::largest_component(extract_isosurface(grid));
   const double area = surface_area(dense);
   double edge = std::sqrt(2 * area / (std::sqrt(3.0) * target_vertices));
-  Mesh mesh = detail::remesh_isotropic(dense, edge, 3);
+  Mesh mesh = detail::remesh_isotropic(dense, edge, 2);
   edge *= std::sqrt(static_cast<double>(mesh.num_vertices()) / target_vertices);
   mesh = detail::remesh_isotropic(mesh, edge, 3);
   project_to_surface(body, mesh);

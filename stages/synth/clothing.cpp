@@ -171,7 +171,7 @@ Rgb trousers(const Outfit& o, double su, double sv, double seam) {
 }
 
 Rgb skin(const Outfit& o, double su, double sv) {
-  return vary(o.skin, 0.12 * fbm(su, sv, 0.04, o.seed + 5) + 0.05 * value_noise(su / 0.005, sv / 0.005, o.seed + 6));
+  return vary(o.skin, 0.16 * fbm(su, sv, 0.03, o.seed + 5) + 0.06 * value_noise(su / 0.005, sv / 0.005, o.seed + 6));
 }
 
 Rgb hair(const Outfit& o, double su, double sv) {

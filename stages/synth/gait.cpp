@@ -77,7 +77,8 @@ Gait make_gait(const Rig& rig, const MotionSpec& spec, double fps, int* cycle_fr
     g.half_width = 0.065 * k;
     g.plant_offset = -0.07 * stride;
     g.heel_strike_pitch = std::min(20.0, 10 + 6 * v / 1.3) * kDeg;
-    g.toe_off_pitch = -std::clamp(45 + 12 * (v / 1.3 - 1), 35.0, 62.0) * kDeg;
+    g.toe_off_pitch = -std::clamp(65 + 8 * (v / 1.3 - 1), 58.0, 72.0) * kDeg;
+    g.heel_off = 0.42;
     g.lift = 0.05 * k + 0.015 * v;
     g.lift_peak = 0.45;
     g.pelvis_drop = 0.01 * k;
@@ -228,7 +229,7 @@ class GaitGenerator {
   // reach, smoothed to a few harmonics, then lowered until it is reachable everywhere.
   void fit_pelvis_height() {
     const int n = 8 * cycle_frames_;
-    constexpr int kHarmonics = 6;
+    constexpr int kHarmonics = 4;
     constexpr double kReach = 0.996;  // knees never lock completely
     std::vector<double> phi(n), limit(n), target(n);
     for (int k = 0; k < n; ++k) {

@@ -130,7 +130,8 @@ class JumpGenerator {
     const double t_apex = t_take_off_ + vz_ / kGravity;
     lean_ = {{t_stand, 0},           {t_crouch_, 35 * kDeg},         {t_take_off_, take_off_lean}, {t_apex, 5 * kDeg},
              {t_land_, landing_lean}, {t_land_ + absorb_, 30 * kDeg}, {t_end_, 0}};
-    arms_ = {{t_stand, 0},          {t_crouch_, -55 * kDeg},         {t_take_off_, 60 * kDeg}, {t_apex, 45 * kDeg},
+    const double arms_back = t_stand + 0.7 * (t_crouch_ - t_stand);
+    arms_ = {{t_stand, 0},          {arms_back, -45 * kDeg},         {t_take_off_, 50 * kDeg}, {t_apex, 45 * kDeg},
              {t_land_, 25 * kDeg},  {t_land_ + absorb_, 10 * kDeg},  {t_end_, 0}};
   }
 
@@ -309,7 +310,7 @@ class ReachGenerator {
     const double h = start_.heading;
     const Matrix3d pelvis = rot_z(h + 0.25 * posture.twist) * rot_y(0.45 * posture.bend);
     // Hips go back to balance a forward bend or a squat.
-    const double back = 0.25 * k * std::sin(0.45 * posture.bend) + 0.35 * posture.crouch;
+    const double back = 0.15 * k * std::sin(0.45 * posture.bend) + 0.3 * posture.crouch;
     const Vector2d xy = to_world(-back, 0);
     std::array<FootState, 2> feet;
     for (int side = 0; side < 2; ++side) {
@@ -376,13 +377,13 @@ class ReachGenerator {
     const double shrug = std::clamp(above / (0.5 * k), 0.0, 1.0) * 25 * kDeg;
     double best = std::numeric_limits<double>::infinity();
     bool found = false;
-    for (double bend = 0; bend <= 90 * kDeg + 1e-9; bend += 2.5 * kDeg) {
-      for (double crouch = 0; crouch <= 0.45 * k + 1e-9; crouch += 0.015 * k) {
+    for (double bend = 0; bend <= 100 * kDeg + 1e-9; bend += 2.5 * kDeg) {
+      for (double crouch = 0; crouch <= 0.5 * k + 1e-9; crouch += 0.015 * k) {
         const Posture p{bend, crouch, twist, shrug};
         const double effort = bend / (90 * kDeg) + 1.5 * crouch / (0.45 * k);
         if (effort >= best) continue;
         const double d = (target_ - body(p, 0).position(rig_.skeleton, rig_.upper_arm[1])).norm();
-        if (d <= 0.95 * reach && d >= 0.35 * reach) {
+        if (d <= 0.97 * reach && d >= 0.35 * reach) {
           best = effort;
           posture_ = p;
           found = true;

@@ -60,6 +60,10 @@ Mesh skin_mesh(const SkinnedMesh& skinned, const std::vector<Eigen::Isometry3d>&
   out.uv_triangles = skinned.rest.uv_triangles;
   out.texture = skinned.rest.texture;
   const std::size_t nv = skinned.rest.positions.size();
+  if (skinned.weights.size() != nv || skinned.joints.size() != nv) {
+    throw InputError(fmt::format("skinning: {} weights and {} joint sets for {} vertices", skinned.weights.size(),
+                                 skinned.joints.size(), nv));
+  }
   out.positions.resize(nv);
   const bool with_normals = skinned.rest.normals.size() == nv;
   if (with_normals) out.normals.resize(nv);
