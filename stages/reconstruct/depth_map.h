@@ -1,0 +1,85 @@
+#pragma once
+// Per-camera depth maps by a hull-guided plane sweep.
+//
+// The visual hull contains the performer, so along every pixel's ray the surface lies at or
+// behind the hull's first hit. For each reference camera the sweep tries depths "hull depth +
+// offset" for a range of offsets; every hypothesis is a surface parallel (along the rays) to
+// the hull, so the matching windows follow the hull's slant rather than being fronto-parallel.
+// Each hypothesis warps the neighbouring cameras' images onto the reference image (cv::remap)
+// and scores every pixel by the normalised cross-correlation (NCC) of its window, computed with
+// box filters over the silhouette only (background pixels are left out of the window, so the
+// outline is matched as well as the inside). Scores of the neighbours that see the point are
+// averaged; the best offset is refined to sub-step precision by a parabola through its
+// neighbours' scores.
+#include <opencv2/core.hpp>
+#include <vector>
+
+#include "pipeline/core/config.h"
+#include "stages/reconstruct/pinhole.h"
+
+namespace fourd::reconstruct {
+
+struct DepthMapOptions {
+  int neighbours = 2;                  // cameras matched against each reference camera
+  double max_angle_deg = 100;          // ... whose optical axes differ by at most this [deg]
+  int window_radius = 3;               // NCC window is (2 r + 1)^2 pixels
+  double front_margin = 0.01;          // depth searched in front of the hull surface [m]
+  double search_depth = 0.10;          // depth searched behind the hull surface [m]
+  double step = 0.0025;                // depth step of the sweep [m]
+  double min_ncc = 0.5;                // best mean NCC below this: no depth
+  double min_texture = 1.5;            // window standard deviation below this [grey levels]: no depth
+  double min_window_fill = 0.5;        // fraction of the window inside the silhouette
+  double occlusion_margin = 0.10;      // a neighbour sees a point at most this far behind its hull [m]
+  double prefilter_sigma = 0.0;        // Gaussian blur of the grey images before matching [px]
+
+  template <class V>
+  void visit(V& v) {
+    v("neighbours", neighbours, "cameras matched against each reference camera", Range{1, 64});
+    v("max_angle_deg", max_angle_deg, "largest angle between matched cameras' axes [deg]",
+      Range{1, 180});
+    v("window_radius", window_radius, "NCC window radius [px]", Range{1, 15});
+    v("front_margin", front_margin, "depth searched in front of the hull [m]", Range{0, 0.5});
+    v("search_depth", search_depth, "depth searched behind the hull [m]", Range{0.001, 2});
+    v("step", step, "depth step of the sweep [m]", Range{0.0001, 0.1});
+    v("min_ncc", min_ncc, "smallest accepted mean NCC", Range{-1, 1});
+    v("min_texture", min_texture, "smallest window standard deviation [grey levels]",
+      Range{0, 255});
+    v("min_window_fill", min_window_fill, "smallest fraction of the window in the silhouette",
+      Range{0, 1});
+    v("occlusion_margin", occlusion_margin,
+      "how far behind a neighbour's hull surface a point can still be seen [m]", Range{0, 2});
+    v("prefilter_sigma", prefilter_sigma, "Gaussian blur before matching [px]", Range{0, 5});
+  }
+  void check() const;
+};
+
+// One camera of one frame, as depth estimation needs it.
+struct StereoView {
+  PinholeCamera camera;
+  cv::Mat gray;         // CV_32F grey levels 0..255, undistorted to `camera`
+  cv::Mat hull_depth;   // CV_32F first hit of the visual hull per pixel [m], 0 = outside
+  cv::Rect roi;         // bounding rectangle of the hull's pixels
+};
+
+struct DepthMap {
+  cv::Mat depth;  // CV_32F, full image, depth along the optical axis [m], 0 = none
+  cv::Mat score;  // CV_32F, mean NCC of the chosen depth (-1 where none)
+};
+
+// The `count` cameras whose optical axes are closest in angle to `ref`'s, at most
+// `max_angle_deg` apart, closest first.
+std::vector<int> select_neighbours(const std::vector<PinholeCamera>& cameras, int ref, int count,
+                                   double max_angle_deg);
+
+// The depth map of views[ref] matched against views[neighbours]. Pixels outside the hull, with
+// too little texture, seen by no neighbour or without a clear best depth inside the searched
+// range get depth 0.
+DepthMap estimate_depth_map(const std::vector<StereoView>& views, int ref,
+                            const std::vector<int>& neighbours, const DepthMapOptions& options);
+
+// Unit normals (world coordinates, facing the camera) of a depth map by central differences of
+// its back-projected points; 0 where a neighbour has no depth or jumps by more than
+// `max_jump` [m].
+cv::Mat depth_map_normals(const PinholeCamera& camera, const cv::Mat& depth, double max_jump);
+
+}  // namespace fourd::reconstruct

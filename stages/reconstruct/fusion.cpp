@@ -1,0 +1,56 @@
+#include "stages/reconstruct/fusion.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace fourd::reconstruct {
+
+void fuse_depth_maps(ScalarGrid& field, const std::vector<PinholeCamera>& cameras,
+                     const std::vector<DepthMap>& depth_maps, double min_score,
+                     const FusionOptions& options) {
+  const float tau = static_cast<float>(options.truncation);
+  const float band = static_cast<float>(options.band);
+  const float hull_weight = static_cast<float>(options.hull_weight);
+  const float score_weight = static_cast<float>(options.score_weight);
+  const float score_floor = static_cast<float>(min_score);
+  const std::size_t n_cams = cameras.size();
+  tbb::parallel_for(0, field.nz, [&](int z) {
+    for (int y = 0; y < field.ny; ++y) {
+      for (int x = 0; x < field.nx; ++x) {
+        float& value = field.values[field.index(x, y, z)];
+        const float hull = value;
+        // Outside the hull stays outside (trimming); deep inside stays inside.
+        if (!(hull <= 0 && hull > -band)) continue;
+        const Eigen::Vector3d p = field.point(x, y, z);
+        float sum = 0, weight = 0;
+        for (std::size_t i = 0; i < n_cams; ++i) {
+          const PinholeCamera& cam = cameras[i];
+          const cv::Mat& depth = depth_maps[i].depth;
+          if (depth.empty()) continue;
+          Eigen::Vector3d c = cam.to_camera(p);
+          if (c.z() <= 0) continue;
+          Eigen::Vector2d px = cam.pixel(c);
+          if (!cam.in_image(px)) continue;
+          const int u = static_cast<int>(px.x()), v = static_cast<int>(px.y());
+          const float d = depth.at<float>(v, u);
+          if (d <= 0) continue;
+          const float sd = d - static_cast<float>(c.z());  // > 0: in front of the surface
+          if (sd < -tau) continue;                          // far behind: maybe hidden
+          const float s = depth_maps[i].score.at<float>(v, u);
+          const float w = (1 - score_weight) +
+                          score_weight * std::max(0.05f, (s - score_floor) / (1 - score_floor));
+          sum += w * std::min(sd, tau);
+          weight += w;
+        }
+        if (weight <= 0) continue;
+        const float fused =
+            (sum + hull_weight * std::clamp(hull, -tau, tau)) / (weight + hull_weight);
+        value = std::max(fused, hull);
+      }
+    }
+  });
+}
+
+}  // namespace fourd::reconstruct

@@ -1,0 +1,40 @@
+#pragma once
+// Fusion of per-camera depth maps with the visual hull into one signed field (negative
+// inside), whose zero level set is the reconstructed surface.
+//
+// Near the hull surface, every depth map votes a truncated signed distance along its rays
+// (TSDF: positive in front of the measured surface, up to `truncation`; points further than
+// `truncation` behind it are not voted on, they may be hidden). The hull adds a weak vote of its
+// own, so the surface falls back to the hull where no camera measured a depth, and the result
+// is trimmed to the hull (max with the hull field): nothing can come out of it.
+#include <vector>
+
+#include "pipeline/core/config.h"
+#include "pipeline/core/isosurface.h"
+#include "stages/reconstruct/depth_map.h"
+#include "stages/reconstruct/pinhole.h"
+
+namespace fourd::reconstruct {
+
+struct FusionOptions {
+  double truncation = 0.015;   // TSDF truncation [m]
+  double band = 0.12;          // depth inside the hull where depth maps are fused [m]
+  double hull_weight = 0.3;    // weight of the hull's vote relative to one depth map's
+  double score_weight = 1.0;   // 1: weight votes by their NCC score above min_ncc; 0: equally
+
+  template <class V>
+  void visit(V& v) {
+    v("truncation", truncation, "TSDF truncation distance [m]", Range{0.001, 0.5});
+    v("band", band, "depth inside the hull where depth maps are fused [m]", Range{0, 2});
+    v("hull_weight", hull_weight, "weight of the hull's vote relative to one depth map",
+      Range{0, 1000});
+    v("score_weight", score_weight, "how much NCC scores weight the votes (0..1)", Range{0, 1});
+  }
+};
+
+// `field` holds the visual hull (VisualHull::grid()) on input and the fused field on output.
+void fuse_depth_maps(ScalarGrid& field, const std::vector<PinholeCamera>& cameras,
+                     const std::vector<DepthMap>& depth_maps, double min_score,
+                     const FusionOptions& options);
+
+}  // namespace fourd::reconstruct

@@ -1,0 +1,29 @@
+// fourd-reconstruct: one mesh per frame from the silhouettes, images and calibration (visual
+// hull refined by multi-view stereo), plus a COLMAP check of the calibration.
+#include "stages/common/stage.h"
+#include "stages/reconstruct/reconstruct.h"
+
+int main(int argc, char** argv) {
+  fourd::StageInfo info{
+      "reconstruct",
+      "Multi-view reconstruction: visual hull of segment/, refined by hull-guided plane-sweep "
+      "stereo and depth-map fusion, remeshed; writes reconstruct/<take>/<frame>.ply, "
+      "reconstruct/report.json and (when the whole session is processed) a COLMAP check of the "
+      "calibration in reconstruct/calibration_check/.",
+      /*takes_frame_range=*/true, /*supports_oracle=*/true};
+  fourd::reconstruct::CalibrationCheckRequest check;
+  std::string check_frame;
+  auto options = [&](CLI::App& app) {
+    app.add_flag("--check-calibration", check.only,
+                 "only check the calibration with COLMAP (no reconstruction)");
+    app.add_flag("--refine-calibration", check.refine,
+                 "refine the calibration with COLMAP's bundle adjustment and write "
+                 "reconstruct/calibration_check/refined/");
+    app.add_option("--check-take", check.take, "take of the frame the calibration check uses");
+    app.add_option("--check-frame", check.frame, "frame the calibration check uses");
+  };
+  return fourd::run_stage_main(argc, argv, info, options,
+                               [&](const fourd::Session& session, const fourd::StageArgs& args) {
+                                 fourd::reconstruct::run_reconstruct(session, args, check);
+                               });
+}

@@ -1,0 +1,142 @@
+#include "stages/reconstruct/mesh_cleanup.h"
+
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Polygon_mesh_processing/border.h>
+#include <CGAL/Polygon_mesh_processing/measure.h>
+#include <CGAL/Polygon_mesh_processing/remesh.h>
+#include <CGAL/Polygon_mesh_processing/triangulate_hole.h>
+#include <CGAL/Surface_mesh.h>
+#include <CGAL/Surface_mesh_simplification/Policies/Edge_collapse/Count_stop_predicate.h>
+#include <CGAL/Surface_mesh_simplification/edge_collapse.h>
+#include <fmt/format.h>
+
+#include <cmath>
+#include <numeric>
+
+#include "pipeline/core/error.h"
+
+namespace fourd::reconstruct {
+namespace {
+
+using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
+using SurfaceMesh = CGAL::Surface_mesh<Kernel::Point_3>;
+namespace PMP = CGAL::Polygon_mesh_processing;
+namespace SMS = CGAL::Surface_mesh_simplification;
+
+int find_root(std::vector<int>& parent, int i) {
+  while (parent[i] != i) {
+    parent[i] = parent[parent[i]];
+    i = parent[i];
+  }
+  return i;
+}
+
+// Throws InputError naming the first face CGAL refuses (non-manifold edge or vertex).
+SurfaceMesh to_surface_mesh(const Mesh& mesh) {
+  SurfaceMesh out;
+  std::vector<SurfaceMesh::Vertex_index> v;
+  v.reserve(mesh.positions.size());
+  for (const Vec3f& p : mesh.positions) v.push_back(out.add_vertex(Kernel::Point_3(p.x(), p.y(), p.z())));
+  for (std::size_t f = 0; f < mesh.triangles.size(); ++f) {
+    const Tri& t = mesh.triangles[f];
+    if (out.add_face(v[t[0]], v[t[1]], v[t[2]]) == SurfaceMesh::null_face()) {
+      throw InputError(fmt::format("remeshing: triangle {} ({}, {}, {}) makes the surface "
+                                   "non-manifold", f, t[0], t[1], t[2]));
+    }
+  }
+  return out;
+}
+
+Mesh from_surface_mesh(const SurfaceMesh& sm) {
+  Mesh out;
+  std::vector<int> index(sm.number_of_vertices() + sm.number_of_removed_vertices(), -1);
+  for (auto v : sm.vertices()) {
+    index[v.idx()] = static_cast<int>(out.positions.size());
+    const auto& p = sm.point(v);
+    out.positions.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()),
+                               static_cast<float>(p.z()));
+  }
+  for (auto f : sm.faces()) {
+    Tri t;
+    int k = 0;
+    for (auto v : CGAL::vertices_around_face(sm.halfedge(f), sm)) t[k++] = index[v.idx()];
+    out.triangles.push_back(t);
+  }
+  return out;
+}
+
+}  // namespace
+
+Mesh keep_largest_component(const Mesh& mesh) {
+  const int nv = static_cast<int>(mesh.positions.size());
+  std::vector<int> parent(nv);
+  std::iota(parent.begin(), parent.end(), 0);
+  for (const Tri& t : mesh.triangles) {
+    int a = find_root(parent, t[0]);
+    for (int k = 1; k < 3; ++k) {
+      int b = find_root(parent, t[k]);
+      if (a != b) parent[b] = a;
+    }
+  }
+  std::vector<double> area(nv, 0.0);
+  for (const Tri& t : mesh.triangles) {
+    const Vec3f& a = mesh.positions[t[0]];
+    area[find_root(parent, t[0])] +=
+        0.5 * (mesh.positions[t[1]] - a).cross(mesh.positions[t[2]] - a).norm();
+  }
+  if (mesh.triangles.empty()) return {};
+  const int keep = static_cast<int>(std::max_element(area.begin(), area.end()) - area.begin());
+  Mesh out;
+  std::vector<int> index(nv, -1);
+  for (const Tri& t : mesh.triangles) {
+    if (find_root(parent, t[0]) != keep) continue;
+    Tri nt;
+    for (int k = 0; k < 3; ++k) {
+      int& i = index[t[k]];
+      if (i < 0) {
+        i = static_cast<int>(out.positions.size());
+        out.positions.push_back(mesh.positions[t[k]]);
+      }
+      nt[k] = i;
+    }
+    out.triangles.push_back(nt);
+  }
+  return out;
+}
+
+int fill_holes(Mesh& mesh) {
+  SurfaceMesh sm = to_surface_mesh(mesh);
+  std::vector<SurfaceMesh::Halfedge_index> cycles;
+  PMP::extract_boundary_cycles(sm, std::back_inserter(cycles));
+  if (cycles.empty()) return 0;
+  for (auto h : cycles) {
+    std::vector<SurfaceMesh::Face_index> faces;
+    std::vector<SurfaceMesh::Vertex_index> vertices;
+    PMP::triangulate_and_refine_hole(sm, h, std::back_inserter(faces), std::back_inserter(vertices));
+  }
+  sm.collect_garbage();
+  mesh = from_surface_mesh(sm);
+  return static_cast<int>(cycles.size());
+}
+
+Mesh remesh(const Mesh& mesh, const RemeshOptions& options) {
+  if (options.target_vertices <= 0 || mesh.triangles.empty()) return mesh;
+  SurfaceMesh sm = to_surface_mesh(mesh);
+  // A closed triangle mesh has about 2V faces and 3V edges.
+  const double target = options.target_vertices;
+  if (sm.number_of_vertices() > options.decimate_factor * target) {
+    SMS::Count_stop_predicate<SurfaceMesh> stop(
+        static_cast<std::size_t>(3 * options.decimate_factor * target));
+    SMS::edge_collapse(sm, stop);
+    sm.collect_garbage();
+  }
+  // Equilateral triangles of side L cover the area A with 2V faces: A = 2V (sqrt(3)/4) L^2.
+  const double area = PMP::area(sm);
+  const double edge = std::sqrt(2.0 * area / (std::sqrt(3.0) * target));
+  PMP::isotropic_remeshing(faces(sm), edge, sm,
+                           CGAL::parameters::number_of_iterations(options.iterations));
+  sm.collect_garbage();
+  return from_surface_mesh(sm);
+}
+
+}  // namespace fourd::reconstruct

@@ -1,0 +1,37 @@
+#pragma once
+// Turning a raw reconstructed surface into the mesh later stages want: one closed component,
+// no holes, a given number of well-shaped triangles.
+#include "pipeline/core/config.h"
+#include "pipeline/core/mesh.h"
+
+namespace fourd::reconstruct {
+
+struct RemeshOptions {
+  int target_vertices = 5000;   // vertices of the final mesh (0: keep the fused surface as is)
+  int iterations = 3;           // isotropic remeshing iterations
+  double decimate_factor = 3;   // first collapse edges down to this many times the target
+
+  template <class V>
+  void visit(V& v) {
+    v("target_vertices", target_vertices, "vertices of the final mesh (0: no remeshing)",
+      Range{0, 10000000});
+    v("iterations", iterations, "isotropic remeshing iterations", Range{0, 100});
+    v("decimate_factor", decimate_factor,
+      "edge collapse to this many times target_vertices before remeshing", Range{1, 1000});
+  }
+};
+
+// The connected component (through shared vertices) with the largest area; unreferenced
+// vertices are dropped.
+Mesh keep_largest_component(const Mesh& mesh);
+
+// Closes every hole (boundary loop) with a triangulated, refined and faired patch (CGAL).
+// Returns the number of holes filled.
+int fill_holes(Mesh& mesh);
+
+// Isotropic remeshing to about `options.target_vertices` vertices (CGAL): edge collapse down to
+// decimate_factor x target, then remeshing at the edge length that gives the target count on
+// the mesh's area. Throws InputError when the mesh is not a manifold surface.
+Mesh remesh(const Mesh& mesh, const RemeshOptions& options);
+
+}  // namespace fourd::reconstruct

@@ -1,0 +1,578 @@
+#include "stages/reconstruct/reconstruct.h"
+
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <fmt/ranges.h>
+
+#include <algorithm>
+#include <atomic>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgproc.hpp>
+#include <regex>
+#include <set>
+
+#include "pipeline/core/capture.h"
+#include "pipeline/core/colmap_model.h"
+#include "pipeline/core/error.h"
+#include "pipeline/core/files.h"
+#include "pipeline/core/image_io.h"
+#include "pipeline/core/isosurface.h"
+#include "pipeline/core/log.h"
+#include "pipeline/core/mesh_io.h"
+#include "stages/reconstruct/colmap_tool.h"
+#include "stages/reconstruct/raycast.h"
+
+namespace fourd::reconstruct {
+
+namespace fs = std::filesystem;
+
+void ReconstructOptions::check() const {
+  if (method != "stereo" && method != "colmap" && method != "visual_hull") {
+    throw ConfigError(fmt::format("method '{}': expected stereo, colmap or visual_hull", method));
+  }
+  if (fusion.band < depth.search_depth) {
+    throw ConfigError("fusion.band must be at least depth.search_depth: the fused band must "
+                      "cover the searched depths");
+  }
+}
+
+Rig Rig::from(std::vector<Camera> calibration) {
+  Rig rig;
+  rig.cameras = std::move(calibration);
+  for (const Camera& c : rig.cameras) {
+    rig.pinholes.push_back(PinholeCamera::from(c));
+    rig.undistorters.emplace_back(c);
+  }
+  return rig;
+}
+
+namespace {
+
+class StepTimer {
+ public:
+  explicit StepTimer(FrameResult& result) : result_(result) {}
+  void done(const char* step) {
+    result_.seconds.emplace_back(step, timer_.seconds());
+    timer_ = log::Timer();
+  }
+
+ private:
+  FrameResult& result_;
+  log::Timer timer_;
+};
+
+// Grey levels as float, resampled to the pinhole camera.
+cv::Mat undistorted_gray(const cv::Mat& bgr, const Undistorter& undistorter) {
+  cv::Mat gray, f;
+  cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
+  gray.convertTo(f, CV_32F);
+  return undistorter.apply(f, cv::INTER_LINEAR);
+}
+
+std::size_t boundary_edges(const Mesh& mesh) {
+  std::map<std::pair<int, int>, int> edges;
+  for (const Tri& t : mesh.triangles) {
+    for (int k = 0; k < 3; ++k) {
+      int a = t[k], b = t[(k + 1) % 3];
+      edges[{std::min(a, b), std::max(a, b)}] += 1;
+    }
+  }
+  std::size_t n = 0;
+  for (const auto& [e, count] : edges) n += count == 1;
+  return n;
+}
+
+// Drops faces with a vertex more than `tolerance` outside the hull.
+Mesh trim_to_hull(const Mesh& mesh, const VisualHull& hull, double tolerance) {
+  std::vector<char> outside(mesh.positions.size());
+  tbb::parallel_for(std::size_t{0}, mesh.positions.size(), [&](std::size_t i) {
+    outside[i] = hull.value(mesh.positions[i].cast<double>()) > tolerance;
+  });
+  Mesh out;
+  out.positions = mesh.positions;
+  for (const Tri& t : mesh.triangles) {
+    if (!outside[t[0]] && !outside[t[1]] && !outside[t[2]]) out.triangles.push_back(t);
+  }
+  return keep_largest_component(out);
+}
+
+}  // namespace
+
+FrameResult reconstruct_frame(const Rig& rig, const FrameInput& input,
+                              const ReconstructOptions& options, bool want_visual_hull,
+                              const fs::path& work_dir) {
+  FrameResult result;
+  StepTimer timer(result);
+  std::vector<Camera> cameras;
+  for (int c : input.cameras) cameras.push_back(rig.cameras[c]);
+
+  // 1. Visual hull.
+  VisualHull hull(cameras, input.silhouettes, options.visual_hull);
+  ScalarGrid field = hull.grid();
+  if (field.nx == 0) {
+    result.failure = "the visual hull is empty: no point of the capture volume is inside every "
+                     "silhouette (check the silhouettes and the calibration)";
+    return result;
+  }
+  Mesh hull_mesh = keep_largest_component(extract_isosurface(field, 0.0f));
+  if (hull_mesh.triangles.empty()) {
+    result.failure = "the visual hull has no surface";
+    return result;
+  }
+  timer.done("visual_hull");
+  if (want_visual_hull) {
+    result.visual_hull = remesh(hull_mesh, options.remesh);
+    timer.done("visual_hull_remesh");
+  }
+
+  Mesh surface;
+  if (options.method == "visual_hull") {
+    surface = std::move(hull_mesh);
+  } else {
+    // 2. Depth maps, matched on undistorted images, searched behind the hull's first hit.
+    MeshRaycaster raycaster(hull_mesh);
+    const int n = static_cast<int>(cameras.size());
+    std::vector<StereoView> views(n);
+    std::vector<PinholeCamera> pinholes(n);
+    tbb::parallel_for(0, n, [&](int i) {
+      const int c = input.cameras[i];
+      views[i].camera = pinholes[i] = rig.pinholes[c];
+      views[i].gray = undistorted_gray(input.images[i], rig.undistorters[c]);
+      SurfaceRender render = raycaster.render(rig.pinholes[c]);
+      views[i].hull_depth = render.depth;
+      views[i].roi = render.roi;
+    });
+    timer.done("hull_depth");
+    std::vector<DepthMap> depth_maps(n);
+    tbb::parallel_for(0, n, [&](int i) {
+      std::vector<int> neighbours = select_neighbours(pinholes, i, options.depth.neighbours,
+                                                      options.depth.max_angle_deg);
+      depth_maps[i] = estimate_depth_map(views, i, neighbours, options.depth);
+    });
+    std::size_t hull_pixels = 0, matched = 0;
+    for (int i = 0; i < n; ++i) {
+      hull_pixels += cv::countNonZero(views[i].hull_depth > 0);
+      matched += cv::countNonZero(depth_maps[i].depth > 0);
+    }
+    result.depth_coverage = hull_pixels ? double(matched) / hull_pixels : 0.0;
+    timer.done("depth_maps");
+
+    // 3. Fusion.
+    if (options.method == "stereo") {
+      fuse_depth_maps(field, pinholes, depth_maps, options.depth.min_ncc, options.fusion);
+      timer.done("fusion");
+      surface = keep_largest_component(extract_isosurface(field, 0.0f));
+      timer.done("isosurface");
+    } else {
+      const std::string colmap = find_colmap(options.colmap.executable);
+      if (colmap.empty()) {
+        result.failure = fmt::format("method colmap: the COLMAP executable '{}' was not found",
+                                     options.colmap.executable);
+        return result;
+      }
+      std::vector<MvsView> mvs(n);
+      tbb::parallel_for(0, n, [&](int i) {
+        const int c = input.cameras[i];
+        mvs[i].camera = pinholes[i];
+        mvs[i].image = rig.undistorters[c].apply(input.images[i], cv::INTER_LINEAR);
+        mvs[i].depth = depth_maps[i].depth;
+        mvs[i].normal = depth_map_normals(pinholes[i], depth_maps[i].depth, 0.02);
+      });
+      try {
+        write_colmap_workspace(work_dir, mvs);
+        const std::size_t points = colmap_stereo_fusion(colmap, work_dir, options.colmap);
+        timer.done("colmap_stereo_fusion");
+        if (points == 0) throw SolverError("COLMAP stereo_fusion fused no point");
+        surface = colmap_poisson_mesh(colmap, work_dir, options.colmap);
+        timer.done("colmap_poisson_mesher");
+      } catch (const Error& e) {
+        result.failure = e.what();
+        return result;
+      }
+      if (!options.colmap.keep_workspace) {
+        std::error_code ec;
+        fs::remove_all(work_dir, ec);
+      }
+      surface = trim_to_hull(surface, hull, options.colmap.hull_trim);
+      timer.done("trim");
+    }
+  }
+  if (surface.triangles.empty()) {
+    result.failure = "the fused surface is empty";
+    return result;
+  }
+
+  // 4. One closed, remeshed surface.
+  if (boundary_edges(surface) > 0) {
+    int holes = fill_holes(surface);
+    if (holes > 0) result.warnings.push_back(fmt::format("filled {} hole(s)", holes));
+    timer.done("fill_holes");
+  }
+  result.mesh = remesh(surface, options.remesh);
+  timer.done("remesh");
+  result.reconstructed = true;
+  return result;
+}
+
+namespace {
+
+struct TakeFrames {
+  std::string name;
+  int frames = 0;  // 0 .. frames-1 exist for at least one camera
+};
+
+// Takes and frame counts from capture/<take>/<camera>/<frame>.png. Unlike scan_capture this
+// tolerates a camera missing some frames: that camera is left out of those frames (with a
+// warning) instead of failing the whole session.
+std::vector<TakeFrames> list_takes(const Session& session, const std::vector<Camera>& cameras) {
+  static const std::regex frame_file(R"((\d{6})\.(png|jpg))");
+  std::vector<TakeFrames> takes;
+  std::error_code ec;
+  if (!fs::is_directory(session.capture_dir(), ec)) {
+    throw InputError(fmt::format("{}: no capture folder", session.capture_dir().string()));
+  }
+  for (const auto& entry : fs::directory_iterator(session.capture_dir())) {
+    if (!entry.is_directory() || entry.path().filename().string().front() == '.') continue;
+    TakeFrames take{entry.path().filename().string(), 0};
+    for (const Camera& c : cameras) {
+      fs::path dir = entry.path() / c.name;
+      if (!fs::is_directory(dir, ec)) continue;
+      for (const auto& f : fs::directory_iterator(dir)) {
+        std::smatch m;
+        std::string name = f.path().filename().string();
+        if (std::regex_match(name, m, frame_file)) take.frames = std::max(take.frames, std::stoi(m[1]) + 1);
+      }
+    }
+    if (take.frames > 0) takes.push_back(take);
+  }
+  std::sort(takes.begin(), takes.end(), [](auto& a, auto& b) { return a.name < b.name; });
+  return takes;
+}
+
+// How much of the capture volume a camera sees: the fraction of a lattice of points in the
+// volume that project into its image.
+double volume_coverage(const Camera& camera, const VisualHullOptions& hull) {
+  constexpr int kSteps = 9;
+  int seen = 0, total = 0;
+  for (int i = 0; i < kSteps; ++i)
+    for (int j = 0; j < kSteps; ++j)
+      for (int k = 0; k < kSteps; ++k) {
+        Eigen::Vector3d p;
+        const int idx[3] = {i, j, k};
+        for (int a = 0; a < 3; ++a) {
+          p[a] = hull.volume_min[a] + (hull.volume_max[a] - hull.volume_min[a]) * idx[a] / (kSteps - 1);
+        }
+        Eigen::Vector2d px;
+        seen += camera.project(p, &px) && camera.in_image(px);
+        ++total;
+      }
+  return double(seen) / total;
+}
+
+struct Item {
+  std::size_t take;
+  int frame;
+};
+
+nlohmann::json frame_record(const std::string& take, int frame, const FrameResult& r,
+                            const std::vector<std::string>& warnings, std::size_t cameras_used) {
+  nlohmann::json j;
+  j["take"] = take;
+  j["frame"] = frame;
+  j["reconstructed"] = r.reconstructed;
+  if (!r.reconstructed) j["skipped_because"] = r.failure;
+  j["cameras_used"] = cameras_used;
+  j["vertices"] = r.mesh.positions.size();
+  j["triangles"] = r.mesh.triangles.size();
+  j["depth_coverage"] = r.depth_coverage;
+  nlohmann::json seconds = nlohmann::json::object();
+  double total = 0;
+  for (const auto& [step, s] : r.seconds) {
+    seconds[step] = s;
+    total += s;
+  }
+  j["seconds"] = seconds;
+  j["seconds_total"] = total;
+  j["warnings"] = warnings;
+  return j;
+}
+
+// report.json from every <take>/<frame>.json present (so farm jobs that each did a range add
+// up), plus this run's timing.
+void write_report(const fs::path& out_dir, const std::vector<TakeFrames>& takes,
+                  const nlohmann::json& run) {
+  nlohmann::json report;
+  report["run"] = run;
+  nlohmann::json frames = nlohmann::json::array();
+  std::map<std::string, double> step_sum;
+  std::size_t done = 0, skipped = 0;
+  nlohmann::json skipped_list = nlohmann::json::array();
+  for (const TakeFrames& t : takes) {
+    for (int f = 0; f < t.frames; ++f) {
+      fs::path p = out_dir / t.name / (frame_name(f) + ".json");
+      std::error_code ec;
+      if (!fs::exists(p, ec)) continue;
+      nlohmann::json j;
+      try {
+        j = nlohmann::json::parse(read_file(p));
+      } catch (const std::exception&) {
+        continue;  // a record being written by another job right now
+      }
+      if (j.value("reconstructed", false)) {
+        ++done;
+        for (const auto& [step, s] : j["seconds"].items()) step_sum[step] += s.get<double>();
+      } else {
+        ++skipped;
+        skipped_list.push_back({{"take", t.name}, {"frame", f},
+                                {"because", j.value("skipped_because", "")}});
+      }
+      frames.push_back(std::move(j));
+    }
+  }
+  nlohmann::json steps = nlohmann::json::object();
+  for (const auto& [step, s] : step_sum) steps[step] = done ? s / done : 0.0;
+  report["summary"] = {{"frames_reconstructed", done},
+                       {"frames_skipped", skipped},
+                       {"skipped", skipped_list},
+                       {"mean_seconds_per_step", steps},
+                       {"seconds_per_frame", run.value("seconds_per_frame", 0.0)}};
+  report["frames"] = frames;
+  write_file_atomic(out_dir / "report.json", report.dump(1) + "\n");
+}
+
+void run_calibration_check(const Session& session, const Rig& rig,
+                           const std::vector<TakeFrames>& takes, const ReconstructOptions& options,
+                           const CalibrationCheckRequest& request, const fs::path& out_dir) {
+  CalibrationCheckOptions check = options.calibration_check;
+  std::string take = request.take.empty() ? check.take : request.take;
+  int frame = request.frame >= 0 ? request.frame : check.frame;
+  if (take.empty()) take = takes.front().name;
+  auto it = std::find_if(takes.begin(), takes.end(), [&](auto& t) { return t.name == take; });
+  if (it == takes.end()) {
+    throw InputError(fmt::format("calibration check: no take '{}' in {}", take,
+                                 session.capture_dir().string()));
+  }
+  if (frame >= it->frames) {
+    throw InputError(fmt::format("calibration check: take {} has frames 0..{}, not {}", take,
+                                 it->frames - 1, frame));
+  }
+  const std::string colmap = find_colmap(check.executable);
+  if (colmap.empty()) {
+    log::warn("calibration check skipped: the COLMAP executable '{}' was not found (install "
+              "colmap, or set stages.reconstruct.calibration_check.executable)",
+              check.executable);
+    return;
+  }
+  std::vector<cv::Mat> images;
+  for (const Camera& c : rig.cameras) images.push_back(read_capture_image(session, c, take, frame));
+  const bool refine = check.refine || request.refine;
+  log::info("checking the calibration with COLMAP on take {} frame {}{}", take, frame,
+            refine ? " (with refinement)" : "");
+  log::Timer timer;
+  CalibrationCheckResult result;
+  try {
+    result = check_calibration(colmap, rig.cameras, images, check, refine,
+                               out_dir / "calibration_check");
+  } catch (const Error& e) {
+    log::warn("calibration check failed: {}", e.what());
+    if (request.only) throw;
+    return;
+  }
+  result.take = take;
+  result.frame = frame;
+  for (const auto& [name, e] : result.cameras) {
+    std::string after;
+    if (result.refined.count(name)) {
+      after = fmt::format(", after refinement {:.3f} px", result.refined.at(name).mean_error_px);
+    }
+    log::info("camera {}: mean reprojection error {:.3f} px over {} points{}", name,
+              e.mean_error_px, e.observations, after);
+  }
+  for (const auto& w : result.warnings) log::warn("{}", w);
+  if (refine) {
+    log::info("refined calibration written to {}", (out_dir / "calibration_check" / "refined").string());
+  }
+  log::info("calibration check: {} points triangulated, {:.1f} s", result.points, timer.seconds());
+  write_file_atomic(out_dir / "calibration_check" / "report.json", result.to_json().dump(1) + "\n");
+}
+
+}  // namespace
+
+void run_reconstruct(const Session& session, const StageArgs& args,
+                     const CalibrationCheckRequest& request) {
+  ReconstructOptions options;
+  session.stage_options("reconstruct", options);
+  const std::vector<Camera> calibration = read_colmap_model(session.calibration_dir());
+  const fs::path out_dir = stage_output_dir(session, args, "reconstruct");
+  const fs::path segment_dir = stage_input_dir(session, args, "segment");
+  ensure_directory(out_dir);
+
+  // Cameras that see nothing of the capture volume cannot help: leave them out, loudly.
+  std::vector<Camera> usable;
+  std::vector<std::string> blind;
+  for (const Camera& c : calibration) {
+    double coverage = volume_coverage(c, options.visual_hull);
+    if (coverage == 0) {
+      blind.push_back(c.name);
+      log::warn("camera {} sees nothing of the capture volume (calibration/ puts it looking "
+                "elsewhere): it is left out", c.name);
+    } else {
+      usable.push_back(c);
+    }
+  }
+  if (static_cast<int>(usable.size()) < options.min_cameras) {
+    throw InputError(fmt::format(
+        "{}: only {} camera(s) look at the capture volume, {} needed (cameras looking elsewhere: "
+        "{}) — check the calibration and stages.reconstruct.visual_hull.volume_min/max",
+        session.calibration_dir().string(), usable.size(), options.min_cameras,
+        blind.empty() ? "none" : fmt::format("{}", fmt::join(blind, ", "))));
+  }
+  const Rig rig = Rig::from(usable);
+  const std::vector<TakeFrames> takes = list_takes(session, rig.cameras);
+  if (takes.empty()) {
+    throw InputError(fmt::format("{}: no take with frames of the calibrated cameras",
+                                 session.capture_dir().string()));
+  }
+
+  const FrameSelection& sel = args.selection;
+  const bool whole_session = sel.take.empty() && sel.first == 0 && sel.last < 0;
+  if (request.only || (options.calibration_check.enabled && whole_session)) {
+    run_calibration_check(session, rig, takes, options, request, out_dir);
+  }
+  if (request.only) return;
+
+  std::vector<Item> items;
+  for (std::size_t t = 0; t < takes.size(); ++t) {
+    for (int f = 0; f < takes[t].frames; ++f) {
+      if (sel.selects(takes[t].name, f)) items.push_back({t, f});
+    }
+  }
+  if (items.empty()) {
+    throw InputError(fmt::format("--take '{}' --frames {}:{} selects no frame of the capture",
+                                 sel.take, sel.first, sel.last));
+  }
+  log::info("reconstructing {} frame(s) of {} take(s) from {} cameras, method {}", items.size(),
+            takes.size(), rig.cameras.size(), options.method);
+
+  std::atomic<std::size_t> failed{0};
+  std::mutex log_mutex;
+  log::Progress progress("reconstructing frames", items.size());
+  log::Timer wall;
+  auto process = [&](const Item& item) {
+    const std::string& take = takes[item.take].name;
+    const int frame = item.frame;
+    FrameInput input;
+    std::vector<std::string> warnings;
+    for (std::size_t c = 0; c < rig.cameras.size(); ++c) {
+      const Camera& cam = rig.cameras[c];
+      cv::Mat image, silhouette;
+      const fs::path sil_path = segment_dir / take / cam.name / (frame_name(frame) + ".png");
+      try {
+        image = read_capture_image(session, cam, take, frame);
+        silhouette = read_image(sil_path, cv::IMREAD_GRAYSCALE);
+      } catch (const Error& e) {
+        warnings.push_back(fmt::format("camera {} left out: {}", cam.name, e.what()));
+        continue;
+      }
+      if (silhouette.size() != image.size()) {
+        warnings.push_back(fmt::format("camera {} left out: silhouette {} is {}x{}, the image "
+                                       "{}x{}", cam.name, sil_path.string(), silhouette.cols,
+                                       silhouette.rows, image.cols, image.rows));
+        continue;
+      }
+      const int fg = cv::countNonZero(silhouette);
+      if (fg == 0) {
+        warnings.push_back(fmt::format("camera {} left out: its silhouette {} is empty (it would "
+                                       "carve away everything)", cam.name, sil_path.string()));
+        continue;
+      }
+      if (fg == static_cast<int>(silhouette.total())) {
+        warnings.push_back(fmt::format("camera {} left out: its silhouette {} is full (the whole "
+                                       "image is foreground)", cam.name, sil_path.string()));
+        continue;
+      }
+      input.cameras.push_back(static_cast<int>(c));
+      input.images.push_back(image);
+      input.silhouettes.push_back(silhouette);
+    }
+    FrameResult result;
+    if (static_cast<int>(input.cameras.size()) < options.min_cameras) {
+      result.failure = fmt::format("only {} usable camera(s), {} needed", input.cameras.size(),
+                                   options.min_cameras);
+    } else {
+      result = reconstruct_frame(rig, input, options, options.write_visual_hull,
+                                 out_dir / "work" / take / frame_name(frame));
+    }
+    warnings.insert(warnings.end(), result.warnings.begin(), result.warnings.end());
+    const fs::path mesh_path = out_dir / take / (frame_name(frame) + ".ply");
+    const fs::path hull_path = out_dir / "visual_hull" / take / (frame_name(frame) + ".ply");
+    ensure_directory(mesh_path.parent_path());
+    std::error_code ec;
+    if (result.reconstructed) {
+      write_ply(mesh_path, result.mesh);
+      if (options.write_visual_hull && !result.visual_hull.empty()) {
+        ensure_directory(hull_path.parent_path());
+        write_ply(hull_path, result.visual_hull);
+      }
+    } else {
+      // Never leave an earlier run's mesh standing in for a frame that failed now.
+      fs::remove(mesh_path, ec);
+      fs::remove(hull_path, ec);
+      ++failed;
+    }
+    write_file_atomic(out_dir / take / (frame_name(frame) + ".json"),
+                      frame_record(take, frame, result, warnings, input.cameras.size()).dump(1) + "\n");
+    {
+      std::lock_guard lock(log_mutex);
+      for (const auto& w : warnings) log::warn("take {} frame {}: {}", take, frame, w);
+      if (!result.reconstructed) {
+        log::warn("take {} frame {}: skipped — {}", take, frame, result.failure);
+      } else {
+        std::string steps;
+        for (const auto& [s, t] : result.seconds) steps += fmt::format(" {} {:.2f}", s, t);
+        log::debug("take {} frame {}: {} vertices, depth coverage {:.0f}%, seconds:{}", take,
+                   frame, result.mesh.positions.size(), 100 * result.depth_coverage, steps);
+      }
+    }
+    progress.step();
+  };
+  if (options.frames_in_parallel == 1) {
+    for (const Item& item : items) process(item);
+  } else {
+    const int concurrency = options.frames_in_parallel > 0 ? options.frames_in_parallel
+                                                           : tbb::this_task_arena::max_concurrency();
+    tbb::task_arena arena(concurrency);
+    arena.execute([&] {
+      tbb::parallel_for(std::size_t{0}, items.size(), [&](std::size_t i) { process(items[i]); },
+                        tbb::simple_partitioner());
+    });
+  }
+  std::error_code ec;
+  fs::remove_all(out_dir / "work", ec);
+
+  const double seconds = wall.seconds();
+  nlohmann::json run = {{"frames", items.size()},
+                        {"frames_skipped", failed.load()},
+                        {"wall_seconds", seconds},
+                        {"seconds_per_frame", seconds / items.size()},
+                        {"threads", tbb::this_task_arena::max_concurrency()},
+                        {"method", options.method}};
+  write_report(out_dir, takes, run);
+  YAML::Emitter used;
+  used << to_yaml(options);
+  write_file_atomic(out_dir / "options.yaml", std::string(used.c_str()) + "\n");
+  log::info("reconstructed {} of {} frame(s) in {:.1f} s ({:.2f} s per frame)",
+            items.size() - failed.load(), items.size(), seconds, seconds / items.size());
+  if (failed.load() == items.size()) {
+    throw InputError(fmt::format("no frame could be reconstructed ({} tried); see {}",
+                                 items.size(), (out_dir / "report.json").string()));
+  }
+  if (failed.load() > 0) {
+    log::warn("{} frame(s) could not be reconstructed and were skipped: see {}", failed.load(),
+              (out_dir / "report.json").string());
+  }
+}
+
+}  // namespace fourd::reconstruct

@@ -1,0 +1,112 @@
+#pragma once
+// The reconstruction stage: one closed mesh per frame from the calibrated silhouettes and
+// images, as a studio's reconstruction step does (Starck & Hilton 2007: visual hull refined by
+// stereo):
+//
+//   1. visual hull of the silhouettes, as a signed field on a voxel grid (visual_hull.h);
+//   2. per-camera depth maps by a hull-guided plane sweep against neighbouring cameras
+//      (depth_map.h);
+//   3. fusion of the depth maps with the hull into one field, trimmed to the hull (fusion.h),
+//      or COLMAP's stereo_fusion + poisson_mesher from the same depth maps (colmap_mvs.h);
+//   4. isosurface, largest component, holes filled, remeshed to a vertex count
+//      (mesh_cleanup.h).
+//
+// Outputs (in reconstruct/, or reconstruct_oracle/ in oracle mode):
+//   <take>/<frame>.ply               the mesh (binary PLY)
+//   <take>/<frame>.json              what happened to that frame: vertices, seconds per step,
+//                                    warnings, or why it was skipped
+//   visual_hull/<take>/<frame>.ply   the visual hull alone, remeshed the same way (validation
+//                                    compares both)
+//   report.json                      every frame's record plus a summary, rebuilt after each run
+//   options.yaml                     the options used
+//   calibration_check/               COLMAP's view of the calibration (calibration_check.h)
+#include <filesystem>
+#include <map>
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "pipeline/core/camera.h"
+#include "pipeline/core/config.h"
+#include "pipeline/core/mesh.h"
+#include "pipeline/core/session.h"
+#include "stages/common/stage.h"
+#include "stages/reconstruct/calibration_check.h"
+#include "stages/reconstruct/colmap_mvs.h"
+#include "stages/reconstruct/depth_map.h"
+#include "stages/reconstruct/fusion.h"
+#include "stages/reconstruct/mesh_cleanup.h"
+#include "stages/reconstruct/pinhole.h"
+#include "stages/reconstruct/visual_hull.h"
+
+namespace fourd::reconstruct {
+
+struct ReconstructOptions {
+  // "stereo": hull refined by multi-view stereo, fused here (TSDF); "colmap": the same depth
+  // maps fused by COLMAP's stereo_fusion and meshed by poisson_mesher; "visual_hull": the hull.
+  std::string method = "stereo";
+  int min_cameras = 3;             // usable cameras a frame needs
+  bool write_visual_hull = true;   // also write visual_hull/<take>/<frame>.ply
+  int frames_in_parallel = 0;      // frames reconstructed at once (0: as many as threads)
+  VisualHullOptions visual_hull;
+  DepthMapOptions depth;
+  FusionOptions fusion;
+  ColmapMvsOptions colmap;
+  RemeshOptions remesh;
+  CalibrationCheckOptions calibration_check;
+
+  template <class V>
+  void visit(V& v) {
+    v("method", method, "stereo | colmap | visual_hull");
+    v("min_cameras", min_cameras, "usable cameras a frame needs", Range{2, 1000});
+    v("write_visual_hull", write_visual_hull, "also write the visual hull meshes");
+    v("frames_in_parallel", frames_in_parallel, "frames reconstructed at once (0: threads)",
+      Range{0, 1024});
+    v("visual_hull", visual_hull, "visual hull");
+    v("depth", depth, "depth maps (hull-guided plane sweep)");
+    v("fusion", fusion, "depth map fusion (method stereo)");
+    v("colmap", colmap, "COLMAP fusion and meshing (method colmap)");
+    v("remesh", remesh, "final remeshing");
+    v("calibration_check", calibration_check, "calibration check with COLMAP");
+  }
+  void check() const;
+};
+
+// The calibrated cameras and what every frame reuses of them.
+struct Rig {
+  std::vector<Camera> cameras;
+  std::vector<PinholeCamera> pinholes;    // the same cameras without lens distortion
+  std::vector<Undistorter> undistorters;  // images -> pinhole pixel grid
+  static Rig from(std::vector<Camera> calibration);
+};
+
+// One frame's inputs: the usable cameras (indices into the rig; the caller leaves out, with a
+// warning, cameras without an image or a sensible silhouette) and their images.
+struct FrameInput {
+  std::vector<int> cameras;
+  std::vector<cv::Mat> images;       // 8-bit BGR as captured
+  std::vector<cv::Mat> silhouettes;  // CV_8UC1, nonzero = performer
+};
+
+struct FrameResult {
+  bool reconstructed = false;
+  std::string failure;                 // why not, when !reconstructed
+  Mesh mesh;
+  Mesh visual_hull;                    // empty unless asked for
+  std::vector<std::string> warnings;
+  std::vector<std::pair<std::string, double>> seconds;  // per step, in order
+  double depth_coverage = 0;           // fraction of hull pixels that got a depth
+};
+
+// Reconstructs one frame. A frame that cannot be reconstructed (empty hull, COLMAP failing)
+// comes back with reconstructed = false and the reason in `failure`. `work_dir` is used by
+// method "colmap" only (its workspace).
+FrameResult reconstruct_frame(const Rig& rig, const FrameInput& input,
+                              const ReconstructOptions& options, bool want_visual_hull,
+                              const std::filesystem::path& work_dir = {});
+
+// The stage: every selected frame of every take, frames in parallel.
+void run_reconstruct(const Session& session, const StageArgs& args,
+                     const CalibrationCheckRequest& check_request);
+
+}  // namespace fourd::reconstruct
