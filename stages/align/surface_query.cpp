@@ -2,6 +2,8 @@
 
 #include <embree3/rtcore.h>
 
+#include <Eigen/Geometry>
+
 #include <cstring>
 #include <limits>
 
@@ -24,6 +26,7 @@ struct QueryState {
   const std::vector<Vec3f>* positions;
   const std::vector<Tri>* triangles;
   const std::vector<Vec3f>* face_normals;
+  const std::vector<int>* source;
   Vec3f p;
   Vec3f normal;
   float min_cos;
@@ -47,7 +50,7 @@ bool point_query_callback(RTCPointQueryFunctionArguments* args) {
   hit.found = true;
   hit.point = q;
   hit.normal = n;
-  hit.triangle = static_cast<int>(prim);
+  hit.triangle = (*state->source)[prim];
   hit.barycentric = bary;
   hit.distance = d;
   return true;
@@ -103,6 +106,7 @@ struct SurfaceQuery::Impl {
   std::vector<Vec3f> positions;
   std::vector<Tri> triangles;  // the non-degenerate ones
   std::vector<Vec3f> face_normals;
+  std::vector<int> source;  // index of each kept triangle in the input mesh
   RTCScene scene = nullptr;
   ~Impl() {
     if (scene) rtcReleaseScene(scene);
@@ -114,12 +118,14 @@ SurfaceQuery::SurfaceQuery(const Mesh& mesh) : impl_(std::make_unique<Impl>()) {
   s.positions = mesh.positions;
   s.triangles.reserve(mesh.triangles.size());
   s.face_normals.reserve(mesh.triangles.size());
-  for (const Tri& t : mesh.triangles) {
+  for (std::size_t f = 0; f < mesh.triangles.size(); ++f) {
+    const Tri& t = mesh.triangles[f];
     Vec3f n = (s.positions[t[1]] - s.positions[t[0]]).cross(s.positions[t[2]] - s.positions[t[0]]);
     float len = n.norm();
     if (!(len > 0)) continue;
     s.triangles.push_back(t);
     s.face_normals.push_back(n / len);
+    s.source.push_back(static_cast<int>(f));
   }
   RTCDevice device = shared_device();
   s.scene = rtcNewScene(device);
@@ -150,7 +156,7 @@ SurfaceHit SurfaceQuery::closest(const Vec3f& p, float max_distance, const Vec3f
                                  float min_cos) const {
   SurfaceHit hit;
   if (impl_->triangles.empty()) return hit;
-  QueryState state{&impl_->positions, &impl_->triangles, &impl_->face_normals, p, normal,
+  QueryState state{&impl_->positions, &impl_->triangles, &impl_->face_normals, &impl_->source, p, normal,
                    min_cos, !normal.isZero(), &hit};
   RTCPointQuery query;
   query.x = p.x();
@@ -165,7 +171,5 @@ SurfaceHit SurfaceQuery::closest(const Vec3f& p, float max_distance, const Vec3f
 }
 
 const std::vector<Vec3f>& SurfaceQuery::positions() const { return impl_->positions; }
-const std::vector<Tri>& SurfaceQuery::triangles() const { return impl_->triangles; }
-const std::vector<Vec3f>& SurfaceQuery::face_normals() const { return impl_->face_normals; }
 
 }  // namespace fourd::align

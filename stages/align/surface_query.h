@@ -14,7 +14,7 @@ struct SurfaceHit {
   bool found = false;
   Vec3f point = Vec3f::Zero();   // closest point on the surface
   Vec3f normal = Vec3f::Zero();  // unit normal of the triangle it lies on
-  int triangle = -1;
+  int triangle = -1;                  // index into the input mesh's triangles
   Vec3f barycentric = Vec3f::Zero();  // of `point` in `triangle`
   float distance = 0;                 // |query - point| [m]
 };
@@ -33,8 +33,6 @@ class SurfaceQuery {
                      float min_cos = -1.0f) const;
 
   const std::vector<Vec3f>& positions() const;
-  const std::vector<Tri>& triangles() const;
-  const std::vector<Vec3f>& face_normals() const;  // unit; zero for degenerate triangles
 
  private:
   struct Impl;

@@ -1,0 +1,84 @@
+#pragma once
+// The `align` stage: non-sequential temporal alignment of every reconstructed frame of every
+// take to one template mesh (Huang et al. 2011, as used by Casas et al. 2012).
+//
+//   1. A shape histogram per frame, the distance between every pair of frames, a minimum
+//      spanning tree over them, rooted at its most central frame (or a chosen one).
+//   2. The template: the root frame remeshed to a vertex budget.
+//   3. Registration along the tree, parent to child (independent branches in parallel): each
+//      child starts from its parent's deformation, moved by a rigid guess from the shape
+//      histograms. Alignment errors do not accumulate along a take.
+//   4. Frames that cannot be used (empty, non-manifold, unreadable) are excluded; a frame whose
+//      registration fails (large residual or uncovered surface) is re-parented to the most
+//      similar aligned frame, and excluded when that fails too; all of it in the report.
+//   5. Optionally the sequential baseline: the same registration frame to frame in time order.
+//
+// Reads <input>/<take>/<frame>.ply (reconstruct/, or oracle/reconstruct/ in oracle mode) and
+// writes <output>/template.ply, <output>/<take>/<frame>.ply (template topology), tree.json,
+// report.json, options.yaml, and with the baseline sequential/<take>/<frame>.ply.
+#include <string>
+#include <vector>
+
+#include "pipeline/core/config.h"
+#include "pipeline/core/session.h"
+#include "stages/align/registration.h"
+#include "stages/align/shape_descriptor.h"
+#include "stages/common/stage.h"
+
+namespace fourd::align {
+
+struct AlignOptions {
+  int template_vertices = 3000;   // template vertex count (the paper's 3,000)
+  int remesh_iterations = 10;     // isotropic remeshing passes for the template
+  std::string root;               // "<take>/<frame>" to force the root; empty: most central
+  double max_surface_rms = 0.02;  // a fit with a larger vertex-to-surface rms failed [m]
+  double max_uncovered_fraction = 0.05;  // ... or leaving more of the frame uncovered
+  double far_edge_factor = 4.0;   // tree edges longer than this x the median are flagged
+  int reparent_attempts = 3;      // other parents tried for a frame whose registration failed
+  bool exclude_non_manifold = true;  // non-manifold frames are excluded (else flagged only)
+  double max_volume_ratio = 1.35;    // larger ratio of two takes' median volumes: refused as
+                                     // different characters
+  bool sequential_baseline = false;  // also run the frame-to-frame baseline (sequential/)
+  DescriptorOptions descriptor;
+  RegistrationOptions registration;
+
+  template <class V>
+  void visit(V& v) {
+    v("template_vertices", template_vertices, "template vertex count", Range{100, 1000000});
+    v("remesh_iterations", remesh_iterations, "isotropic remeshing passes", Range{1, 100});
+    v("root", root, "root frame as <take>/<frame>; empty: the most central frame");
+    v("max_surface_rms", max_surface_rms, "largest accepted fit rms [m]", Range{1e-4, 10});
+    v("max_uncovered_fraction", max_uncovered_fraction,
+      "largest accepted fraction of the frame left uncovered", Range{0, 1});
+    v("far_edge_factor", far_edge_factor, "flag tree edges longer than this x the median",
+      Range{1, 1e6});
+    v("reparent_attempts", reparent_attempts, "other parents tried after a failed fit",
+      Range{0, 100});
+    v("exclude_non_manifold", exclude_non_manifold, "exclude non-manifold frames");
+    v("max_volume_ratio", max_volume_ratio,
+      "largest ratio of two takes' median volumes of one character", Range{1, 100});
+    v("sequential_baseline", sequential_baseline, "also run the frame-to-frame baseline");
+    v("descriptor", descriptor, "shape histogram");
+    v("registration", registration, "pairwise non-rigid registration");
+  }
+};
+
+// What happened to one frame.
+struct FrameStatus {
+  std::string take;
+  int frame = 0;
+  bool aligned = false;
+  // Any of: unreadable, empty, non_manifold, far_from_parent, registration_failed,
+  // reparented, orphaned (its parent failed).
+  std::vector<std::string> flags;
+  std::string error;          // why it was excluded (empty when aligned)
+  int parent = -1;            // index of the frame it was registered from; -1 for the root
+  double parent_distance = 0; // shape distance to it
+  int depth = 0;              // registrations between the root and this frame
+  FitStats fit;
+  double seconds = 0;  // registration wall time
+};
+
+void run_align(const Session& session, const StageArgs& args);
+
+}  // namespace fourd::align

@@ -1,0 +1,681 @@
+#include "stages/align/registration.h"
+
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Dense>
+#include <Eigen/Sparse>
+#include <Eigen/SparseCholesky>
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <cmath>
+#include <fmt/format.h>
+#include <limits>
+#include <queue>
+#include <unordered_map>
+
+#include "pipeline/core/error.h"
+#include "stages/align/mesh_tools.h"
+
+namespace fourd::align {
+namespace {
+
+using Vec3d = Eigen::Vector3d;
+using Mat3d = Eigen::Matrix3d;
+using Mat6 = Eigen::Matrix<double, 6, 6>;
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+using SparseMatrix = Eigen::SparseMatrix<double>;
+
+Mat3d skew(const Vec3d& v) {
+  Mat3d m;
+  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return m;
+}
+
+Mat3d rotation_from_vector(const Vec3d& w) {
+  const double angle = w.norm();
+  if (angle < 1e-12) return Mat3d::Identity();
+  return Eigen::AngleAxisd(angle, w / angle).toRotationMatrix();
+}
+
+// The rotation closest to m in the Frobenius norm (polar decomposition).
+Mat3d nearest_rotation(const Mat3d& m) {
+  Eigen::JacobiSVD<Mat3d> svd(m, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Mat3d u = svd.matrixU();
+  const Mat3d& v = svd.matrixV();
+  Mat3d r = u * v.transpose();
+  if (r.determinant() < 0) {
+    u.col(2) *= -1;
+    r = u * v.transpose();
+  }
+  return r;
+}
+
+// Cauchy weight: down-weights outliers (wrong matches, topology merges) smoothly.
+double robust_weight(double residual, double scale) {
+  const double x = residual / scale;
+  return 1.0 / (1.0 + x * x);
+}
+
+float cos_degrees(double degrees) { return static_cast<float>(std::cos(degrees * M_PI / 180.0)); }
+
+struct Correspondence {
+  Vec3d point = Vec3d::Zero();
+  Vec3d normal = Vec3d::Zero();
+  double weight = 0;  // 0: no match
+};
+
+// Closest compatible surface points of every vertex, robustly weighted.
+std::vector<Correspondence> find_correspondences(const std::vector<Vec3f>& positions,
+                                                 const std::vector<Vec3f>& normals,
+                                                 const SurfaceQuery& target, double max_distance,
+                                                 double robust_scale,
+                                                 const RegistrationOptions& options) {
+  std::vector<Correspondence> out(positions.size());
+  const float min_cos = cos_degrees(options.normal_angle);
+  tbb::parallel_for(std::size_t{0}, positions.size(), [&](std::size_t i) {
+    SurfaceHit hit = target.closest(positions[i], static_cast<float>(max_distance), normals[i], min_cos);
+    if (!hit.found) return;
+    out[i].point = hit.point.cast<double>();
+    out[i].normal = hit.normal.cast<double>();
+    out[i].weight = robust_weight(hit.distance, robust_scale);
+  });
+  return out;
+}
+
+// ---- Geodesic neighbourhoods on the template ---------------------------------------------
+
+// Dijkstra along mesh edges from `source`, lowering `dist` where it finds shorter paths (so
+// repeated calls give the distance to the nearest source) and recording the source in `owner`.
+// Vertices farther than `radius` are not expanded. Returns the vertices it reached.
+std::vector<int> geodesic_update(const Mesh& mesh, const std::vector<std::vector<int>>& rings,
+                                 int source, int source_id, double radius,
+                                 std::vector<double>& dist, std::vector<int>& owner) {
+  using Item = std::pair<double, int>;
+  std::priority_queue<Item, std::vector<Item>, std::greater<>> heap;
+  std::vector<int> reached;
+  if (dist[source] > 0) {
+    dist[source] = 0;
+    owner[source] = source_id;
+  }
+  heap.emplace(0.0, source);
+  reached.push_back(source);
+  while (!heap.empty()) {
+    auto [d, v] = heap.top();
+    heap.pop();
+    if (d > dist[v]) continue;
+    for (int w : rings[v]) {
+      const double nd = d + (mesh.positions[v] - mesh.positions[w]).cast<double>().norm();
+      if (nd < dist[w] && nd <= radius) {
+        if (dist[w] == std::numeric_limits<double>::infinity()) reached.push_back(w);
+        dist[w] = nd;
+        owner[w] = source_id;
+        heap.emplace(nd, w);
+      }
+    }
+  }
+  return reached;
+}
+
+DeformationGraph build_graph(const Mesh& mesh, const std::vector<std::vector<int>>& rings,
+                             int node_count, int influences) {
+  const int nv = static_cast<int>(mesh.num_vertices());
+  node_count = std::min(node_count, nv);
+  const double inf = std::numeric_limits<double>::infinity();
+  DeformationGraph graph;
+  graph.influences = influences;
+
+  // Geodesic farthest-point sampling: each new node is the vertex farthest from all nodes so
+  // far; `owner` ends as the geodesic Voronoi partition.
+  std::vector<double> dist(nv, inf);
+  std::vector<int> owner(nv, -1);
+  int next = 0;
+  for (int j = 0; j < node_count; ++j) {
+    graph.node_vertex.push_back(next);
+    graph.node_position.push_back(mesh.positions[next].cast<double>());
+    geodesic_update(mesh, rings, next, j, inf, dist, owner);
+    next = static_cast<int>(std::max_element(dist.begin(), dist.end()) - dist.begin());
+  }
+  const double cover_radius = *std::max_element(dist.begin(), dist.end());
+  if (!std::isfinite(cover_radius)) {
+    throw InputError("template: the mesh is not connected (deformation graph cannot reach it all)");
+  }
+
+  // Graph edges between nodes whose Voronoi cells touch.
+  graph.node_neighbours.assign(node_count, {});
+  for (int v = 0; v < nv; ++v) {
+    for (int w : rings[v]) {
+      if (owner[v] != owner[w]) graph.node_neighbours[owner[v]].push_back(owner[w]);
+    }
+  }
+  for (auto& n : graph.node_neighbours) {
+    std::sort(n.begin(), n.end());
+    n.erase(std::unique(n.begin(), n.end()), n.end());
+  }
+
+  // Each vertex blends its K nearest nodes (geodesically), w = (1 - d / d_{K+1})^2
+  // (Sumner et al. 2007), normalised.
+  const double radius = 3.0 * cover_radius;
+  std::vector<std::vector<std::pair<double, int>>> near(nv);
+  std::vector<double> local(nv, inf);
+  std::vector<int> local_owner(nv, -1);
+  for (int j = 0; j < node_count; ++j) {
+    std::vector<int> reached =
+        geodesic_update(mesh, rings, graph.node_vertex[j], j, radius, local, local_owner);
+    for (int v : reached) {
+      near[v].emplace_back(local[v], j);
+      local[v] = inf;
+    }
+  }
+  graph.influence_node.assign(static_cast<std::size_t>(nv) * influences, -1);
+  graph.influence_weight.assign(static_cast<std::size_t>(nv) * influences, 0.0);
+  for (int v = 0; v < nv; ++v) {
+    auto& list = near[v];
+    std::sort(list.begin(), list.end());
+    const int k = std::min<int>(influences, static_cast<int>(list.size()));
+    const double d_max = static_cast<int>(list.size()) > influences ? list[influences].first : radius;
+    double sum = 0;
+    for (int i = 0; i < k; ++i) {
+      double w = 1.0 - list[i].first / std::max(d_max, 1e-12);
+      w = std::max(w, 1e-4);  // the nearest nodes always count a little
+      w *= w;
+      graph.influence_node[static_cast<std::size_t>(v) * influences + i] = list[i].second;
+      graph.influence_weight[static_cast<std::size_t>(v) * influences + i] = w;
+      sum += w;
+    }
+    for (int i = 0; i < k; ++i) graph.influence_weight[static_cast<std::size_t>(v) * influences + i] /= sum;
+  }
+  return graph;
+}
+
+// Cotangent weights of every one-ring edge, clamped positive (the template is remeshed
+// isotropically, so few angles are obtuse).
+std::vector<std::vector<double>> cotangent_weights(const Mesh& mesh,
+                                                   const std::vector<std::vector<int>>& rings) {
+  std::vector<std::vector<double>> weights(rings.size());
+  for (std::size_t v = 0; v < rings.size(); ++v) weights[v].assign(rings[v].size(), 0.0);
+  auto add = [&](int i, int j, double w) {
+    auto it = std::find(rings[i].begin(), rings[i].end(), j);
+    if (it != rings[i].end()) weights[i][it - rings[i].begin()] += w;
+  };
+  for (const Tri& t : mesh.triangles) {
+    for (int k = 0; k < 3; ++k) {
+      const int i = t[(k + 1) % 3], j = t[(k + 2) % 3];
+      const Vec3d a = (mesh.positions[i] - mesh.positions[t[k]]).cast<double>();
+      const Vec3d b = (mesh.positions[j] - mesh.positions[t[k]]).cast<double>();
+      const double cross = a.cross(b).norm();
+      const double cot = cross > 1e-20 ? a.dot(b) / cross : 0.0;
+      add(i, j, 0.5 * cot);
+      add(j, i, 0.5 * cot);
+    }
+  }
+  for (auto& ring : weights) {
+    for (double& w : ring) w = std::clamp(w, 1e-3, 1e3);
+  }
+  return weights;
+}
+
+// ---- Embedded deformation: Gauss-Newton --------------------------------------------------
+
+// The block pattern of the Gauss-Newton matrix: a 6x6 block per pair of nodes that share a
+// vertex or a graph edge. Fixed for the template, so the sparse Cholesky analysis is reused.
+class GraphSystem {
+ public:
+  explicit GraphSystem(const TemplateModel& model) : model_(model) {
+    const DeformationGraph& g = model.graph;
+    nodes_ = static_cast<int>(g.node_vertex.size());
+    for (int j = 0; j < nodes_; ++j) block_id(j, j);
+    const int nv = static_cast<int>(model.rest.num_vertices()), k = g.influences;
+    for (int v = 0; v < nv; ++v) {
+      for (int a = 0; a < k; ++a) {
+        for (int b = 0; b < k; ++b) {
+          int na = g.influence_node[v * k + a], nb = g.influence_node[v * k + b];
+          if (na >= 0 && nb >= 0 && na <= nb) block_id(na, nb);
+        }
+      }
+    }
+    for (int j = 0; j < nodes_; ++j) {
+      for (int n : g.node_neighbours[j]) block_id(std::min(j, n), std::max(j, n));
+    }
+    blocks_.resize(pairs_.size());
+  }
+
+  int unknowns() const { return 6 * nodes_; }
+
+  void clear() {
+    for (auto& b : blocks_) b.setZero();
+    gradient_ = Eigen::VectorXd::Zero(6 * nodes_);
+  }
+  // H(a, b) += m for a <= b (the lower triangle follows by symmetry).
+  void add(int a, int b, const Mat6& m) {
+    if (a <= b) {
+      blocks_[ids_.at(key(a, b))] += m;
+    } else {
+      blocks_[ids_.at(key(b, a))] += m.transpose();
+    }
+  }
+  void add_gradient(int a, const Vec6& g) { gradient_.segment<6>(6 * a) += g; }
+
+  SparseMatrix matrix(double damping) const {
+    std::vector<Eigen::Triplet<double>> triplets;
+    triplets.reserve(pairs_.size() * 72);
+    for (std::size_t i = 0; i < pairs_.size(); ++i) {
+      const auto [a, b] = pairs_[i];
+      const Mat6& m = blocks_[i];
+      for (int r = 0; r < 6; ++r) {
+        for (int c = 0; c < 6; ++c) {
+          double value = m(r, c);
+          if (a == b && r == c) value += damping;
+          triplets.emplace_back(6 * a + r, 6 * b + c, value);
+          if (a != b) triplets.emplace_back(6 * b + c, 6 * a + r, value);
+        }
+      }
+    }
+    SparseMatrix h(6 * nodes_, 6 * nodes_);
+    h.setFromTriplets(triplets.begin(), triplets.end());
+    return h;
+  }
+  const Eigen::VectorXd& gradient() const { return gradient_; }
+
+ private:
+  std::uint64_t key(int a, int b) const { return static_cast<std::uint64_t>(a) * nodes_ + b; }
+  int block_id(int a, int b) {
+    auto [it, inserted] = ids_.try_emplace(key(a, b), static_cast<int>(pairs_.size()));
+    if (inserted) pairs_.emplace_back(a, b);
+    return it->second;
+  }
+
+  const TemplateModel& model_;
+  int nodes_ = 0;
+  std::unordered_map<std::uint64_t, int> ids_;
+  std::vector<std::pair<int, int>> pairs_;
+  std::vector<Mat6> blocks_;
+  Eigen::VectorXd gradient_;
+};
+
+// One Gauss-Newton step of the graph energy; updates `state` (rotations, translations).
+// Returns false when the system could not be factorised.
+bool graph_gauss_newton_step(const TemplateModel& model, const std::vector<Correspondence>& matches,
+                             double stiffness, const RegistrationOptions& options,
+                             GraphSystem& system, Eigen::SimplicialLDLT<SparseMatrix>& solver,
+                             bool analyse, DeformationState* state) {
+  const DeformationGraph& g = model.graph;
+  const int nv = static_cast<int>(model.rest.num_vertices()), k = g.influences;
+  system.clear();
+  // Data weight per vertex: nodes / vertices, so that the balance with the regulariser does not
+  // depend on the template's resolution.
+  const double data_weight = static_cast<double>(g.node_vertex.size()) / nv;
+
+  // Data: point-to-plane plus a little point-to-point, with P = c (n n^T + mu I).
+  for (int v = 0; v < nv; ++v) {
+    const Correspondence& m = matches[v];
+    if (m.weight <= 0) continue;
+    const Vec3d rest = model.rest.positions[v].cast<double>();
+    Vec3d deformed = Vec3d::Zero();
+    Mat3d s[8];
+    double w[8];
+    int node[8];
+    int count = 0;
+    for (int a = 0; a < k; ++a) {
+      const int j = g.influence_node[v * k + a];
+      if (j < 0) continue;
+      const Vec3d x = state->rotation[j] * (rest - g.node_position[j]);
+      deformed += g.influence_weight[v * k + a] * (x + g.node_position[j] + state->translation[j]);
+      s[count] = -skew(x);
+      w[count] = g.influence_weight[v * k + a];
+      node[count] = j;
+      ++count;
+    }
+    const Mat3d p = data_weight * m.weight *
+                    (m.normal * m.normal.transpose() + options.point_to_point * Mat3d::Identity());
+    const Vec3d pe = p * (deformed - m.point);
+    for (int a = 0; a < count; ++a) {
+      Vec6 grad;
+      grad << w[a] * s[a].transpose() * pe, w[a] * pe;
+      system.add_gradient(node[a], grad);
+      for (int b = 0; b < count; ++b) {
+        if (node[a] > node[b]) continue;
+        Mat6 block;
+        block << s[a].transpose() * p * s[b], s[a].transpose() * p, p * s[b], p;
+        system.add(node[a], node[b], w[a] * w[b] * block);
+      }
+    }
+  }
+
+  // Regulariser: each node predicts its neighbours' positions as rigidly as possible.
+  for (std::size_t j = 0; j < g.node_vertex.size(); ++j) {
+    for (int n : g.node_neighbours[j]) {
+      const Vec3d d = g.node_position[n] - g.node_position[j];
+      const Vec3d rd = state->rotation[j] * d;
+      const Vec3d r = rd + g.node_position[j] + state->translation[j] - g.node_position[n] -
+                      state->translation[n];
+      Eigen::Matrix<double, 3, 6> jj, jn;
+      jj << -skew(rd), Mat3d::Identity();
+      jn << Mat3d::Zero(), -Mat3d::Identity();
+      system.add_gradient(static_cast<int>(j), stiffness * jj.transpose() * r);
+      system.add_gradient(n, stiffness * jn.transpose() * r);
+      system.add(static_cast<int>(j), static_cast<int>(j), stiffness * jj.transpose() * jj);
+      system.add(n, n, stiffness * jn.transpose() * jn);
+      system.add(static_cast<int>(j), n, stiffness * jj.transpose() * jn);
+    }
+  }
+
+  SparseMatrix h = system.matrix(1e-6 * std::max(stiffness, 1e-3));
+  if (analyse) solver.analyzePattern(h);
+  solver.factorize(h);
+  if (solver.info() != Eigen::Success) return false;
+  const Eigen::VectorXd delta = solver.solve(-system.gradient());
+  if (solver.info() != Eigen::Success || !delta.allFinite()) return false;
+  for (std::size_t j = 0; j < g.node_vertex.size(); ++j) {
+    state->rotation[j] = nearest_rotation(rotation_from_vector(delta.segment<3>(6 * j)) * state->rotation[j]);
+    state->translation[j] += delta.segment<3>(6 * j + 3);
+  }
+  return true;
+}
+
+// ---- Vertex-level ARAP refinement ------------------------------------------------------
+
+// Per-vertex rotations best mapping the template's one-rings onto `positions`.
+std::vector<Mat3d> local_rotations(const TemplateModel& model, const std::vector<Vec3f>& positions) {
+  const std::size_t nv = positions.size();
+  std::vector<Mat3d> rotations(nv);
+  tbb::parallel_for(std::size_t{0}, nv, [&](std::size_t i) {
+    Mat3d cov = Mat3d::Zero();
+    for (std::size_t k = 0; k < model.rings[i].size(); ++k) {
+      const int j = model.rings[i][k];
+      const Vec3d e = (positions[i] - positions[j]).cast<double>();
+      const Vec3d e0 = (model.rest.positions[i] - model.rest.positions[j]).cast<double>();
+      cov += model.ring_weights[i][k] * e * e0.transpose();
+    }
+    rotations[i] = nearest_rotation(cov);
+  });
+  return rotations;
+}
+
+SparseMatrix laplacian(const TemplateModel& model) {
+  const int nv = static_cast<int>(model.rest.num_vertices());
+  std::vector<Eigen::Triplet<double>> triplets;
+  for (int i = 0; i < nv; ++i) {
+    double diagonal = 0;
+    for (std::size_t k = 0; k < model.rings[i].size(); ++k) {
+      // Symmetrised: the edge (i, j) appears in both rings with the same cotangent weight.
+      const double w = model.ring_weights[i][k];
+      triplets.emplace_back(i, model.rings[i][k], -w);
+      diagonal += w;
+    }
+    triplets.emplace_back(i, i, diagonal);
+  }
+  SparseMatrix l(nv, nv);
+  l.setFromTriplets(triplets.begin(), triplets.end());
+  return l;
+}
+
+void refine_vertices(const TemplateModel& model, const SurfaceQuery& target,
+                     const RegistrationOptions& options, std::vector<Vec3f>* positions) {
+  const int nv = static_cast<int>(positions->size());
+  const SparseMatrix l = laplacian(model);
+  Eigen::SimplicialLDLT<SparseMatrix> solver;
+  // A weak pull to the current positions keeps the system definite where nothing matches.
+  const double anchor = 1e-4;
+  for (int it = 0; it < options.refine_iterations; ++it) {
+    const std::vector<Vec3f> normals = vertex_normals(*positions, model.rest.triangles);
+    const std::vector<Correspondence> matches =
+        find_correspondences(*positions, normals, target, options.final_max_distance,
+                             options.robust_scale, options);
+    const std::vector<Mat3d> rotations = local_rotations(model, *positions);
+    SparseMatrix a = l;
+    Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(nv, 3);
+    for (int i = 0; i < nv; ++i) {
+      Vec3d b = Vec3d::Zero();
+      for (std::size_t k = 0; k < model.rings[i].size(); ++k) {
+        const int j = model.rings[i][k];
+        const Vec3d e0 = (model.rest.positions[i] - model.rest.positions[j]).cast<double>();
+        b += model.ring_weights[i][k] * 0.5 * (rotations[i] + rotations[j]) * e0;
+      }
+      const double c = options.refine_weight * matches[i].weight + anchor;
+      a.coeffRef(i, i) += c;
+      const Vec3d target_point = matches[i].weight > 0
+                                     ? Vec3d(options.refine_weight * matches[i].weight * matches[i].point)
+                                     : Vec3d::Zero();
+      b += target_point + anchor * (*positions)[i].cast<double>();
+      rhs.row(i) = b.transpose();
+    }
+    if (it == 0) solver.analyzePattern(a);
+    solver.factorize(a);
+    if (solver.info() != Eigen::Success) {
+      throw SolverError("registration: the refinement system could not be factorised");
+    }
+    const Eigen::MatrixXd x = solver.solve(rhs);
+    if (!x.allFinite()) throw SolverError("registration: the refinement diverged");
+    for (int i = 0; i < nv; ++i) (*positions)[i] = x.row(i).transpose().cast<float>();
+  }
+}
+
+}  // namespace
+
+void RegistrationOptions::check() const {
+  if (stiffness.empty()) throw ConfigError("stiffness: needs at least one level");
+  if (final_max_distance > max_distance) {
+    throw ConfigError(fmt::format("final_max_distance ({}) exceeds max_distance ({})",
+                                  final_max_distance, max_distance));
+  }
+}
+
+std::vector<Vec3f> vertex_normals(const std::vector<Vec3f>& positions,
+                                  const std::vector<Tri>& triangles) {
+  std::vector<Vec3f> normals(positions.size(), Vec3f::Zero());
+  for (const Tri& t : triangles) {
+    const Vec3f n = (positions[t[1]] - positions[t[0]]).cross(positions[t[2]] - positions[t[0]]);
+    for (int k = 0; k < 3; ++k) normals[t[k]] += n;
+  }
+  for (Vec3f& n : normals) {
+    const float len = n.norm();
+    if (len > 0) n /= len;
+  }
+  return normals;
+}
+
+TemplateModel build_template_model(const Mesh& template_mesh, const RegistrationOptions& options) {
+  if (template_mesh.empty()) throw InputError("template: empty mesh");
+  TemplateModel model;
+  model.rest.positions = template_mesh.positions;
+  model.rest.triangles = template_mesh.triangles;
+  model.rings = vertex_neighbours(model.rest);
+  model.ring_weights = cotangent_weights(model.rest, model.rings);
+  model.graph = build_graph(model.rest, model.rings, options.graph_nodes, options.node_influences);
+  return model;
+}
+
+DeformationState rest_state(const TemplateModel& model) {
+  DeformationState state;
+  const std::size_t m = model.graph.node_vertex.size();
+  state.rotation.assign(m, Mat3d::Identity());
+  state.translation.assign(m, Vec3d::Zero());
+  state.positions = model.rest.positions;
+  return state;
+}
+
+std::vector<Vec3f> deform_with_graph(const TemplateModel& model, const DeformationState& state) {
+  const DeformationGraph& g = model.graph;
+  const int nv = static_cast<int>(model.rest.num_vertices()), k = g.influences;
+  std::vector<Vec3f> out(nv);
+  tbb::parallel_for(0, nv, [&](int v) {
+    const Vec3d rest = model.rest.positions[v].cast<double>();
+    Vec3d p = Vec3d::Zero();
+    for (int a = 0; a < k; ++a) {
+      const int j = g.influence_node[v * k + a];
+      if (j < 0) continue;
+      p += g.influence_weight[v * k + a] *
+           (state.rotation[j] * (rest - g.node_position[j]) + g.node_position[j] + state.translation[j]);
+    }
+    out[v] = p.cast<float>();
+  });
+  return out;
+}
+
+void apply_rigid(const TemplateModel& model, const Eigen::Isometry3d& motion,
+                 DeformationState* state) {
+  const Mat3d r = motion.linear();
+  // motion(R_j (x - g_j) + g_j + t_j) = (r R_j)(x - g_j) + g_j + [motion(g_j + t_j) - g_j].
+  for (std::size_t j = 0; j < state->rotation.size(); ++j) {
+    const Vec3d& g = model.graph.node_position[j];
+    state->rotation[j] = r * state->rotation[j];
+    state->translation[j] = motion * (g + state->translation[j]) - g;
+  }
+  for (Vec3f& p : state->positions) p = (motion * p.cast<double>()).cast<float>();
+}
+
+Eigen::Isometry3d rigid_icp(const std::vector<Vec3f>& points, const std::vector<Vec3f>& normals,
+                            const SurfaceQuery& target, int iterations, double max_distance,
+                            const RegistrationOptions& options) {
+  Eigen::Isometry3d total = Eigen::Isometry3d::Identity();
+  std::vector<Vec3f> current = points, current_normals = normals;
+  for (int it = 0; it < iterations; ++it) {
+    const std::vector<Correspondence> matches =
+        find_correspondences(current, current_normals, target, max_distance,
+                             std::max(options.robust_scale, max_distance / 3), options);
+    Vec3d centroid = Vec3d::Zero();
+    double weight_sum = 0;
+    int matched = 0;
+    for (std::size_t i = 0; i < current.size(); ++i) {
+      if (matches[i].weight <= 0) continue;
+      centroid += matches[i].weight * current[i].cast<double>();
+      weight_sum += matches[i].weight;
+      ++matched;
+    }
+    if (matched < 6) break;
+    centroid /= weight_sum;
+    // Linearised about the centroid (better conditioned): x -> x + w x (x - c) + t.
+    Mat6 a = Mat6::Zero();
+    Vec6 b = Vec6::Zero();
+    for (std::size_t i = 0; i < current.size(); ++i) {
+      const Correspondence& m = matches[i];
+      if (m.weight <= 0) continue;
+      const Vec3d p = current[i].cast<double>() - centroid;
+      const Vec3d e = current[i].cast<double>() - m.point;
+      Eigen::Matrix<double, 3, 6> j;
+      j << -skew(p), Mat3d::Identity();
+      const Mat3d w = m.weight * (m.normal * m.normal.transpose() +
+                                  options.point_to_point * Mat3d::Identity());
+      a += j.transpose() * w * j;
+      b += j.transpose() * w * e;
+    }
+    a.diagonal().array() += 1e-9 * (1.0 + a.diagonal().maxCoeff());
+    const Vec6 x = a.ldlt().solve(-b);
+    if (!x.allFinite()) break;
+    const Mat3d r = rotation_from_vector(x.head<3>());
+    Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
+    step.linear() = r;
+    step.translation() = centroid + x.tail<3>() - r * centroid;
+    for (std::size_t i = 0; i < current.size(); ++i) {
+      current[i] = (step * current[i].cast<double>()).cast<float>();
+      current_normals[i] = (r * current_normals[i].cast<double>()).cast<float>();
+    }
+    total = step * total;
+    if (x.head<3>().norm() < 1e-7 && x.tail<3>().norm() < 1e-8) break;
+  }
+  return total;
+}
+
+DeformationState register_to_surface(const TemplateModel& model, const DeformationState& start,
+                                     const SurfaceQuery& target,
+                                     const RegistrationOptions& options) {
+  DeformationState state = start;
+  std::vector<Vec3f> positions = deform_with_graph(model, state);
+  if (options.rigid_iterations > 0) {
+    const Eigen::Isometry3d motion =
+        rigid_icp(positions, vertex_normals(positions, model.rest.triangles), target,
+                  options.rigid_iterations, options.max_distance, options);
+    apply_rigid(model, motion, &state);
+  }
+
+  GraphSystem system(model);
+  Eigen::SimplicialLDLT<SparseMatrix> solver;
+  bool analysed = false;
+  const int levels = static_cast<int>(options.stiffness.size());
+  for (int level = 0; level < levels; ++level) {
+    // The matching distance shrinks geometrically from max_distance to final_max_distance.
+    const double t = levels > 1 ? static_cast<double>(level) / (levels - 1) : 1.0;
+    const double max_distance =
+        options.max_distance * std::pow(options.final_max_distance / options.max_distance, t);
+    for (int it = 0; it < options.iterations_per_level; ++it) {
+      positions = deform_with_graph(model, state);
+      const std::vector<Correspondence> matches = find_correspondences(
+          positions, vertex_normals(positions, model.rest.triangles), target, max_distance,
+          std::max(options.robust_scale, max_distance / 3), options);
+      if (std::getenv("H8_DEBUG")) {
+        double sum = 0; int cnt = 0;
+        for (std::size_t i = 0; i < matches.size(); ++i) if (matches[i].weight > 0) { sum += (positions[i].cast<double>() - matches[i].point).squaredNorm(); ++cnt; }
+        fprintf(stderr, "level %d it %d: matched %d/%zu rms %.2f mm\n", level, it, cnt, matches.size(), 1e3 * std::sqrt(sum / std::max(cnt, 1)));
+      }
+      if (!graph_gauss_newton_step(model, matches, options.stiffness[level], options, system,
+                                   solver, !analysed, &state)) {
+        throw SolverError("registration: the deformation graph system could not be solved");
+      }
+      analysed = true;
+    }
+  }
+  state.positions = deform_with_graph(model, state);
+  refine_vertices(model, target, options, &state.positions);
+  return state;
+}
+
+FitStats evaluate_fit(const TemplateModel& model, const std::vector<Vec3f>& positions,
+                      const SurfaceQuery& target, const RegistrationOptions& options) {
+  FitStats stats;
+  const std::size_t nv = positions.size();
+  std::vector<double> forward(nv, 0.0);
+  tbb::parallel_for(std::size_t{0}, nv, [&](std::size_t i) {
+    SurfaceHit hit = target.closest(positions[i], std::numeric_limits<float>::max());
+    forward[i] = hit.found ? hit.distance : std::numeric_limits<double>::infinity();
+  });
+  double sum = 0;
+  for (double d : forward) sum += d * d;
+  stats.surface_rms = nv ? std::sqrt(sum / nv) : 0.0;
+  if (nv) {
+    std::vector<double> sorted = forward;
+    const std::size_t k = std::min(nv - 1, static_cast<std::size_t>(0.95 * nv));
+    std::nth_element(sorted.begin(), sorted.begin() + k, sorted.end());
+    stats.surface_p95 = sorted[k];
+    stats.surface_max = *std::max_element(forward.begin(), forward.end());
+  }
+
+  // Reverse: does the fit cover the whole frame (a limb left behind shows up here only)?
+  Mesh fitted;
+  fitted.positions = positions;
+  fitted.triangles = model.rest.triangles;
+  const SurfaceQuery fitted_query(fitted);
+  const std::vector<Vec3f>& frame_points = target.positions();
+  const std::size_t stride = std::max<std::size_t>(1, frame_points.size() / 20000);
+  const std::size_t samples = (frame_points.size() + stride - 1) / stride;
+  std::vector<double> reverse(samples, 0.0);
+  tbb::parallel_for(std::size_t{0}, samples, [&](std::size_t s) {
+    SurfaceHit hit = fitted_query.closest(frame_points[s * stride], std::numeric_limits<float>::max());
+    reverse[s] = hit.found ? hit.distance : std::numeric_limits<double>::infinity();
+  });
+  double reverse_sum = 0;
+  std::size_t uncovered = 0;
+  for (double d : reverse) {
+    reverse_sum += d * d;
+    if (d > options.coverage_distance) ++uncovered;
+  }
+  if (samples) {
+    stats.reverse_rms = std::sqrt(reverse_sum / samples);
+    stats.uncovered_fraction = static_cast<double>(uncovered) / samples;
+  }
+
+  // Fold-overs: a triangle whose normal opposes its rest normal carried by the local rotations.
+  const std::vector<Mat3d> rotations = local_rotations(model, positions);
+  for (const Tri& t : model.rest.triangles) {
+    const auto& r = model.rest.positions;
+    const Vec3d rest_normal =
+        (r[t[1]] - r[t[0]]).cross(r[t[2]] - r[t[0]]).cast<double>();
+    const Vec3d expected = (rotations[t[0]] + rotations[t[1]] + rotations[t[2]]) * rest_normal;
+    const Vec3d now =
+        (positions[t[1]] - positions[t[0]]).cross(positions[t[2]] - positions[t[0]]).cast<double>();
+    if (now.dot(expected) <= 0) ++stats.flipped_triangles;
+  }
+  return stats;
+}
+
+}  // namespace fourd::align

@@ -1,0 +1,136 @@
+#pragma once
+// Pairwise non-rigid registration of the template to one frame's surface.
+//
+// Coarse to fine:
+//  1. rigid point-to-plane ICP;
+//  2. an embedded deformation graph (Sumner et al. 2007): nodes sampled on the template by
+//     geodesic farthest-point sampling, each with a rotation and a translation; every vertex
+//     follows a blend of its nearest nodes (by geodesic distance, so an arm resting on the body
+//     never moves with it). Gauss-Newton on closest-point (point-to-plane + a little
+//     point-to-point, normal-compatible, robustly weighted) and as-rigid-as-possible graph
+//     terms, with the regulariser relaxed level by level; the sparse Cholesky's ordering and
+//     symbolic analysis are computed once and reused by every iteration;
+//  3. a vertex-level as-rigid-as-possible refinement (Sorkine & Alexa 2007) towards the
+//     surface, regularised against the template's own shape, so detail never accumulates
+//     errors along the tree.
+// Deformations are always expressed relative to the template at rest, so registering frame
+// after frame along the tree composes nothing but the starting guess.
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <vector>
+
+#include "pipeline/core/config.h"
+#include "pipeline/core/mesh.h"
+#include "stages/align/surface_query.h"
+
+namespace fourd::align {
+
+struct RegistrationOptions {
+  int graph_nodes = 250;      // deformation graph nodes
+  int node_influences = 4;    // nodes blended per vertex
+  int rigid_iterations = 10;  // rigid ICP iterations before the non-rigid fit
+  std::vector<double> stiffness = {4, 1.5, 0.5, 0.15};  // graph regulariser weight per level
+  int iterations_per_level = 5;  // Gauss-Newton iterations per level
+  double max_distance = 0.10;    // correspondences farther are ignored, first level [m]
+  double final_max_distance = 0.03;  // ... last level and refinement [m]
+  double normal_angle = 60;      // largest angle between matched normals [deg]
+  double robust_scale = 0.01;    // Cauchy scale of the residuals [m]
+  double point_to_point = 0.1;   // point-to-point weight relative to point-to-plane
+  int refine_iterations = 6;     // vertex-level ARAP refinement iterations (0: none)
+  double refine_weight = 2.0;    // data weight of the refinement relative to ARAP stiffness
+  double coverage_distance = 0.03;  // a frame point farther from the fit is uncovered [m]
+
+  template <class V>
+  void visit(V& v) {
+    v("graph_nodes", graph_nodes, "deformation graph nodes", Range{4, 100000});
+    v("node_influences", node_influences, "nodes blended per vertex", Range{1, 8});
+    v("rigid_iterations", rigid_iterations, "rigid ICP iterations", Range{0, 1000});
+    v("stiffness", stiffness, "graph regulariser weight per level, coarse to fine", Range{0, 1e9});
+    v("iterations_per_level", iterations_per_level, "Gauss-Newton iterations per level",
+      Range{1, 1000});
+    v("max_distance", max_distance, "largest correspondence distance, first level [m]",
+      Range{1e-4, 10});
+    v("final_max_distance", final_max_distance,
+      "largest correspondence distance, last level and refinement [m]", Range{1e-4, 10});
+    v("normal_angle", normal_angle, "largest angle between matched normals [deg]",
+      Range{0, 180});
+    v("robust_scale", robust_scale, "Cauchy scale of the residuals [m]", Range{1e-5, 10});
+    v("point_to_point", point_to_point, "point-to-point weight relative to point-to-plane",
+      Range{0, 100});
+    v("refine_iterations", refine_iterations, "vertex-level refinement iterations",
+      Range{0, 1000});
+    v("refine_weight", refine_weight, "refinement data weight relative to its stiffness",
+      Range{1e-6, 1e6});
+    v("coverage_distance", coverage_distance,
+      "a frame point farther than this from the fit counts as uncovered [m]", Range{1e-4, 10});
+  }
+  void check() const;
+};
+
+// The embedded deformation graph of the template.
+struct DeformationGraph {
+  std::vector<int> node_vertex;                     // #M template vertex of each node
+  std::vector<Eigen::Vector3d> node_position;       // #M rest positions [m]
+  std::vector<std::vector<int>> node_neighbours;    // #M graph edges (both directions)
+  int influences = 0;                               // K slots per vertex
+  std::vector<int> influence_node;                  // #V*K, -1 in unused slots
+  std::vector<double> influence_weight;             // #V*K, summing to 1 per vertex
+};
+
+// Everything registration needs about the template; built once, shared read-only by every
+// registration (thread-safe).
+struct TemplateModel {
+  Mesh rest;                                      // the template (positions, triangles)
+  std::vector<std::vector<int>> rings;            // one-ring of every vertex
+  std::vector<std::vector<double>> ring_weights;  // cotangent weights, aligned with rings
+  DeformationGraph graph;
+};
+
+TemplateModel build_template_model(const Mesh& template_mesh, const RegistrationOptions& options);
+
+// A deformation of the template: per graph node a rotation and translation (the node at rest
+// position g moves a point x to R (x - g) + g + t), and the final vertex positions after the
+// refinement.
+struct DeformationState {
+  std::vector<Eigen::Matrix3d> rotation;     // #M
+  std::vector<Eigen::Vector3d> translation;  // #M
+  std::vector<Vec3f> positions;              // #V
+};
+
+DeformationState rest_state(const TemplateModel& model);
+// Vertex positions the graph alone produces.
+std::vector<Vec3f> deform_with_graph(const TemplateModel& model, const DeformationState& state);
+// Applies the rigid motion after the deformation: x -> motion * x, for graph and positions.
+void apply_rigid(const TemplateModel& model, const Eigen::Isometry3d& motion,
+                 DeformationState* state);
+
+// How well a deformed template fits a frame.
+struct FitStats {
+  double surface_rms = 0;        // template vertices to the frame's surface [m]
+  double surface_p95 = 0;        // [m]
+  double surface_max = 0;        // [m]
+  double reverse_rms = 0;        // frame vertices to the fitted surface [m]
+  double uncovered_fraction = 0; // frame vertices farther than coverage_distance from the fit
+  int flipped_triangles = 0;     // triangles turned over relative to their local rotation
+};
+
+FitStats evaluate_fit(const TemplateModel& model, const std::vector<Vec3f>& positions,
+                      const SurfaceQuery& target, const RegistrationOptions& options);
+
+// Rigid point-to-plane ICP of `points` (with their unit normals) onto the target; returns the
+// motion to apply to them.
+Eigen::Isometry3d rigid_icp(const std::vector<Vec3f>& points, const std::vector<Vec3f>& normals,
+                            const SurfaceQuery& target, int iterations, double max_distance,
+                            const RegistrationOptions& options);
+
+// Registers the template, starting from `start` (e.g. the parent frame's deformation moved by
+// a rigid guess), to the target surface.
+DeformationState register_to_surface(const TemplateModel& model, const DeformationState& start,
+                                     const SurfaceQuery& target,
+                                     const RegistrationOptions& options);
+
+// Area-weighted vertex normals of positions over the template's triangles.
+std::vector<Vec3f> vertex_normals(const std::vector<Vec3f>& positions,
+                                  const std::vector<Tri>& triangles);
+
+}  // namespace fourd::align

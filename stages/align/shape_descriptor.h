@@ -1,0 +1,82 @@
+#pragma once
+// Shape similarity of frames (Huang et al. 2011, "Global temporal registration of multiple
+// non-rigid surface sequences"): a volumetric shape histogram per frame — the fraction of the
+// solid's volume in each bin of shells around its centroid x elevation bands x azimuth sectors
+// about the vertical axis — compared with the L2 distance minimised over rotations about the
+// vertical axis (cyclic shifts of the sectors). Translation-invariant by construction, and
+// invariant to the performer's heading.
+#include <Eigen/Core>
+#include <cstdint>
+#include <vector>
+
+#include "pipeline/core/config.h"
+#include "pipeline/core/mesh.h"
+
+namespace fourd::align {
+
+struct DescriptorOptions {
+  double voxel = 0.02;   // voxel edge of the solid's occupancy grid [m]
+  double radius = 1.2;   // outer radius of the last shell [m]; farther voxels count in it
+  int shells = 12;       // radial shells
+  int elevations = 8;    // elevation bands, equal in solid angle
+  int sectors = 16;      // azimuth sectors about the up axis
+  int up_axis = 2;       // 0 = x, 1 = y, 2 = z
+
+  template <class V>
+  void visit(V& v) {
+    v("voxel", voxel, "voxel edge of the occupancy grid [m]", Range{0.002, 0.2});
+    v("radius", radius, "outer radius of the histogram [m]", Range{0.05, 100});
+    v("shells", shells, "radial shells", Range{1, 100});
+    v("elevations", elevations, "elevation bands", Range{1, 64});
+    v("sectors", sectors, "azimuth sectors about the up axis", Range{1, 360});
+    v("up_axis", up_axis, "vertical axis: 0 = x, 1 = y, 2 = z", Range{0, 2});
+  }
+};
+
+// Inside/outside occupancy of a closed mesh on a regular grid: voxel (x, y, z) has its centre
+// at origin + voxel * (x + 0.5, y + 0.5, z + 0.5).
+struct SolidGrid {
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero();
+  double voxel = 1;
+  int nx = 0, ny = 0, nz = 0;
+  std::vector<std::uint8_t> inside;  // [(z * ny + y) * nx + x]
+  std::size_t index(int x, int y, int z) const {
+    return (static_cast<std::size_t>(z) * ny + y) * nx + x;
+  }
+  Eigen::Vector3d center(int x, int y, int z) const {
+    return origin + voxel * Eigen::Vector3d(x + 0.5, y + 0.5, z + 0.5);
+  }
+};
+
+// Scan-line voxelisation: along every z column of voxel centres, the crossings with the
+// triangles are sorted and the spans between successive pairs are filled (even-odd rule). For
+// a mesh with holes a column with an odd number of crossings drops its last one. `padding`
+// empty voxels surround the mesh's bounding box.
+SolidGrid voxelize_solid(const Mesh& mesh, double voxel, int padding = 1);
+
+struct ShapeDescriptor {
+  std::vector<float> bins;  // [(shell * elevations + band) * sectors + sector], sums to 1
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();  // of the solid volume [m]
+  double volume = 0;                                   // [m^3]
+};
+
+ShapeDescriptor compute_shape_descriptor(const Mesh& mesh, const DescriptorOptions& options);
+
+struct ShapeDistance {
+  double value = 0;  // L2 distance between the histograms after the best rotation
+  int shift = 0;     // sectors: rotating `b` by shift * 360 / sectors degrees about the up
+                     // axis (right-handed) makes it most like `a`
+};
+
+ShapeDistance shape_distance(const ShapeDescriptor& a, const ShapeDescriptor& b,
+                             const DescriptorOptions& options);
+
+// Every pair: value(i, j) = value(j, i); shift(i, j) = -shift(j, i) rotates j onto i.
+struct DistanceMatrix {
+  Eigen::MatrixXd value;
+  Eigen::MatrixXi shift;
+};
+DistanceMatrix pairwise_shape_distances(const std::vector<ShapeDescriptor>& descriptors,
+                                        const DescriptorOptions& options);
+
+}  // namespace fourd::align

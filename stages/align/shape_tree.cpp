@@ -1,0 +1,111 @@
+#include "stages/align/shape_tree.h"
+
+#include <limits>
+#include <queue>
+
+#include "pipeline/core/error.h"
+
+namespace fourd::align {
+namespace {
+
+std::vector<std::vector<int>> adjacency(const std::vector<int>& parent) {
+  std::vector<std::vector<int>> adj(parent.size());
+  for (std::size_t i = 0; i < parent.size(); ++i) {
+    if (parent[i] >= 0) {
+      adj[i].push_back(parent[i]);
+      adj[parent[i]].push_back(static_cast<int>(i));
+    }
+  }
+  return adj;
+}
+
+// Sum of tree-path distances from `source` to every node.
+double path_sum(const std::vector<std::vector<int>>& adj, const Eigen::MatrixXd& distance,
+                int source) {
+  std::vector<double> dist(adj.size(), -1);
+  std::vector<int> stack{source};
+  dist[source] = 0;
+  double sum = 0;
+  while (!stack.empty()) {
+    int u = stack.back();
+    stack.pop_back();
+    sum += dist[u];
+    for (int v : adj[u]) {
+      if (dist[v] >= 0) continue;
+      dist[v] = dist[u] + distance(u, v);
+      stack.push_back(v);
+    }
+  }
+  return sum;
+}
+
+}  // namespace
+
+ShapeTree orient_tree(const std::vector<int>& parent, const Eigen::MatrixXd& distance, int root) {
+  const int n = static_cast<int>(parent.size());
+  const auto adj = adjacency(parent);
+  ShapeTree tree;
+  tree.root = root;
+  tree.parent.assign(n, -1);
+  tree.edge_cost.assign(n, 0.0);
+  tree.children.assign(n, {});
+  tree.depth.assign(n, -1);
+  std::queue<int> queue;
+  queue.push(root);
+  tree.depth[root] = 0;
+  while (!queue.empty()) {
+    int u = queue.front();
+    queue.pop();
+    tree.order.push_back(u);
+    for (int v : adj[u]) {
+      if (tree.depth[v] >= 0) continue;
+      tree.depth[v] = tree.depth[u] + 1;
+      tree.parent[v] = u;
+      tree.edge_cost[v] = distance(u, v);
+      tree.children[u].push_back(v);
+      queue.push(v);
+    }
+  }
+  if (static_cast<int>(tree.order.size()) != n) {
+    throw SolverError("shape tree: the parent links do not form one tree");
+  }
+  return tree;
+}
+
+ShapeTree minimum_spanning_tree(const Eigen::MatrixXd& distance, int root) {
+  const int n = static_cast<int>(distance.rows());
+  if (n == 0) throw InputError("shape tree: no frames");
+  if (root >= n) throw InputError("shape tree: root index out of range");
+  // Prim, O(N^2): fine for dense matrices of a few thousand frames.
+  std::vector<int> parent(n, -1);
+  std::vector<double> best(n, std::numeric_limits<double>::infinity());
+  std::vector<char> in_tree(n, 0);
+  best[0] = 0;
+  for (int step = 0; step < n; ++step) {
+    int u = -1;
+    for (int v = 0; v < n; ++v) {
+      if (!in_tree[v] && (u < 0 || best[v] < best[u])) u = v;
+    }
+    in_tree[u] = 1;
+    for (int v = 0; v < n; ++v) {
+      if (!in_tree[v] && distance(u, v) < best[v]) {
+        best[v] = distance(u, v);
+        parent[v] = u;
+      }
+    }
+  }
+  if (root < 0) {
+    const auto adj = adjacency(parent);
+    double best_sum = std::numeric_limits<double>::infinity();
+    for (int v = 0; v < n; ++v) {
+      double s = path_sum(adj, distance, v);
+      if (s < best_sum) {
+        best_sum = s;
+        root = v;
+      }
+    }
+  }
+  return orient_tree(parent, distance, root);
+}
+
+}  // namespace fourd::align

@@ -1,0 +1,118 @@
+#include "stages/align/registration.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cstdlib>
+#include <iostream>
+
+#include "stages/align/mesh_tools.h"
+#include "tests/align/align_test_data.h"
+#include "tests/test_shapes.h"
+
+namespace fourd::align {
+namespace {
+
+double max_error(const std::vector<Vec3f>& a, const std::vector<Vec3f>& b) {
+  double m = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) m = std::max(m, static_cast<double>((a[i] - b[i]).norm()));
+  return m;
+}
+
+double rms_error(const std::vector<Vec3f>& a, const std::vector<Vec3f>& b) {
+  double s = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) s += (a[i] - b[i]).squaredNorm();
+  return std::sqrt(s / a.size());
+}
+
+const Mesh& figure_template() {
+  static const Mesh mesh = remesh_to_vertex_count(test::make_figure().rest, 2000);
+  return mesh;
+}
+
+TEST(Registration, RigidMotionIsRecoveredExactly) {
+  const Mesh& templ = figure_template();
+  RegistrationOptions options;
+  const TemplateModel model = build_template_model(templ, options);
+
+  Eigen::Isometry3d motion = Eigen::Isometry3d::Identity();
+  motion.translate(Eigen::Vector3d(0.04, -0.03, 0.02));
+  motion.rotate(Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitZ()));
+  motion.rotate(Eigen::AngleAxisd(0.05, Eigen::Vector3d::UnitX()));
+  Mesh moved = templ;
+  for (Vec3f& p : moved.positions) p = (motion * p.cast<double>()).cast<float>();
+  const SurfaceQuery target(moved);
+
+  const DeformationState fit = register_to_surface(model, rest_state(model), target, options);
+  const double err = max_error(fit.positions, moved.positions);
+  std::cout << "rigid motion: max vertex error " << err * 1e3 << " mm\n";
+  EXPECT_LT(err, 1e-4);  // 0.1 mm on a 1.7 m figure: exact up to float precision
+  const FitStats stats = evaluate_fit(model, fit.positions, target, options);
+  EXPECT_EQ(stats.flipped_triangles, 0);
+  EXPECT_LT(stats.surface_rms, 1e-5);
+}
+
+TEST(Registration, SmoothDeformationOfACapsuleIsRecoveredFromFreshConnectivity) {
+  // A capsule 1 m long, radius 0.15 m, with a bump on one side so that sliding is observable.
+  auto capsule = [](const Eigen::Vector3d& p) {
+    const double d = test::segment_distance(p, {0, 0, -0.5}, {0, 0, 0.5}) - 0.15;
+    const double bump = (p - Eigen::Vector3d(0.15, 0, 0.1)).norm() - 0.06;
+    return test::smooth_min(d, bump, 0.03);
+  };
+  const Mesh dense = test::isosurface_of(capsule, {-0.3, -0.3, -0.8}, {0.35, 0.3, 0.8}, 0.01);
+  const Mesh templ = remesh_to_vertex_count(dense, 2000);
+  // Smooth bend in the x-z plane about a centre 1.5 m away (near-isometric, like a limb).
+  auto deform = [](const Vec3f& q) {
+    const double radius = 1.5, angle = q.z() / radius;
+    const double x = q.x();
+    return Vec3f(static_cast<float>(radius - (radius - x) * std::cos(angle)), q.y(),
+                 static_cast<float>((radius - x) * std::sin(angle)));
+  };
+  Mesh target_truth = dense;
+  for (Vec3f& p : target_truth.positions) p = deform(p);
+  const Mesh target_mesh = test::remesh_fresh(target_truth, 0.008, {0.0031, 0.0017, 0.0043});
+  std::vector<Vec3f> expected;
+  for (const Vec3f& p : templ.positions) expected.push_back(deform(p));
+
+  RegistrationOptions options;
+  const SurfaceQuery target(target_mesh);
+  if (std::getenv("H8_VARIANTS")) {
+    for (int variant = 0; variant < 6; ++variant) {
+      RegistrationOptions o;
+      if (variant == 1) o.refine_iterations = 0;
+      if (variant == 2) o.rigid_iterations = 0;
+      if (variant == 3) o.stiffness = {4, 2, 1};
+      if (variant == 4) o.point_to_point = 0.5;
+      if (variant == 5) o.graph_nodes = 100;
+      const TemplateModel m = build_template_model(templ, o);
+      const DeformationState f = register_to_surface(m, rest_state(m), target, o);
+      std::vector<Vec3f> graph_only = deform_with_graph(m, f);
+      double along = 0;
+      for (std::size_t i = 0; i < expected.size(); ++i) along += std::pow(f.positions[i].z() - expected[i].z(), 2);
+      std::cout << "variant " << variant << ": rms " << rms_error(f.positions, expected) * 1e3
+                << " graph-only rms " << rms_error(graph_only, expected) * 1e3 << " z-rms " << std::sqrt(along / expected.size()) * 1e3 << "\n";
+    }
+  }
+  const TemplateModel model = build_template_model(templ, options);
+  const DeformationState fit = register_to_surface(model, rest_state(model), target, options);
+  const FitStats stats = evaluate_fit(model, fit.positions, target, options);
+  const double rms = rms_error(fit.positions, expected);
+  if (std::getenv("H8_VARIANTS")) {
+    for (int b = -7; b < 7; ++b) {
+      double dz = 0, dx = 0; int c = 0;
+      for (std::size_t i = 0; i < expected.size(); ++i) {
+        if (templ.positions[i].z() >= b * 0.1 && templ.positions[i].z() < (b + 1) * 0.1) { dz += fit.positions[i].z() - expected[i].z(); dx += (fit.positions[i] - expected[i]).norm(); ++c; }
+      }
+      std::cout << "z " << b * 0.1 << ": n " << c << " mean dz " << 1e3 * dz / std::max(c, 1) << " mean |d| " << 1e3 * dx / std::max(c, 1) << "\n";
+    }
+  }
+  std::cout << "capsule bend: correspondence rms " << rms * 1e3 << " mm, max "
+            << max_error(fit.positions, expected) * 1e3 << " mm, surface rms "
+            << stats.surface_rms * 1e3 << " mm\n";
+  EXPECT_LT(rms, 0.008);
+  EXPECT_LT(stats.surface_rms, 0.001);
+  EXPECT_EQ(stats.flipped_triangles, 0);
+}
+
+}  // namespace
+}  // namespace fourd::align
