@@ -1,0 +1,136 @@
+#include "stages/timewarp/root_motion.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+namespace fourd::timewarp {
+
+namespace {
+
+constexpr double kTorsoLow = 0.50;     // torso band, fraction of the body height above its feet
+constexpr double kTorsoHigh = 0.80;
+constexpr double kTorsoRadius = 0.12;  // horizontal distance from the axis, fraction of height
+
+Eigen::Vector2d weighted_centroid_xy(const Eigen::Matrix3Xd& x, std::span<const double> w) {
+  Eigen::Vector2d c = Eigen::Vector2d::Zero();
+  for (Eigen::Index v = 0; v < x.cols(); ++v) c += w[v] * x.col(v).head<2>();
+  return c;
+}
+
+}  // namespace
+
+Root2 compose(const Root2& a, const Root2& b) {
+  const double c = std::cos(a.z()), s = std::sin(a.z());
+  return {a.x() + c * b.x() - s * b.y(), a.y() + s * b.x() + c * b.y(), a.z() + b.z()};
+}
+
+Root2 inverse(const Root2& a) {
+  const double c = std::cos(a.z()), s = std::sin(a.z());
+  return {-(c * a.x() + s * a.y()), -(-s * a.x() + c * a.y()), -a.z()};
+}
+
+Root2 relative(const Root2& a, const Root2& b) { return compose(inverse(a), b); }
+
+double wrap_angle(double a) {
+  const double two_pi = 2 * std::numbers::pi;
+  a = std::fmod(a, two_pi);
+  if (a <= -std::numbers::pi) a += two_pi;
+  if (a > std::numbers::pi) a -= two_pi;
+  return a;
+}
+
+double body_height(const Eigen::Matrix3Xd& t) {
+  return t.cols() == 0 ? 0.0 : t.row(2).maxCoeff() - t.row(2).minCoeff();
+}
+
+std::vector<double> torso_weights(const Eigen::Matrix3Xd& t) {
+  const Eigen::Index nv = t.cols();
+  std::vector<double> w(nv, 0.0);
+  if (nv == 0) return w;
+  const double floor = t.row(2).minCoeff();
+  const double height = body_height(t);
+  const double lo = floor + kTorsoLow * height, hi = floor + kTorsoHigh * height;
+  // The body's axis: the centroid of the band, then the band's vertices near it.
+  Eigen::Vector2d axis = Eigen::Vector2d::Zero();
+  int count = 0;
+  for (Eigen::Index v = 0; v < nv; ++v) {
+    if (t(2, v) >= lo && t(2, v) <= hi) {
+      axis += t.col(v).head<2>();
+      ++count;
+    }
+  }
+  if (count > 0) axis /= count;
+  double sum = 0;
+  for (Eigen::Index v = 0; v < nv; ++v) {
+    if (t(2, v) >= lo && t(2, v) <= hi &&
+        (t.col(v).head<2>() - axis).norm() <= kTorsoRadius * height) {
+      w[v] = 1;
+      sum += 1;
+    }
+  }
+  if (sum < 3) {  // no recognisable torso: the whole body
+    std::fill(w.begin(), w.end(), 1.0);
+    sum = static_cast<double>(nv);
+  }
+  for (double& x : w) x /= sum;
+  return w;
+}
+
+Root2 estimate_root(const Eigen::Matrix3Xd& frame, const Eigen::Matrix3Xd& templ,
+                    std::span<const double> torso) {
+  const Eigen::Vector2d cf = weighted_centroid_xy(frame, torso);
+  const Eigen::Vector2d ct = weighted_centroid_xy(templ, torso);
+  // 2D Procrustes: the angle maximising sum w <R a, b> is atan2(sum w a x b, sum w a . b).
+  double cross = 0, dot = 0;
+  for (Eigen::Index v = 0; v < frame.cols(); ++v) {
+    if (torso[v] == 0) continue;
+    const Eigen::Vector2d a = templ.col(v).head<2>() - ct;
+    const Eigen::Vector2d b = frame.col(v).head<2>() - cf;
+    cross += torso[v] * (a.x() * b.y() - a.y() * b.x());
+    dot += torso[v] * a.dot(b);
+  }
+  const double heading = std::atan2(cross, dot);
+  // The root sits where the template's torso centroid lands under the frame's rotation, so
+  // that removing it moves the torso back over the template's.
+  const double c = std::cos(heading), s = std::sin(heading);
+  const Eigen::Vector2d rotated_ct(c * ct.x() - s * ct.y(), s * ct.x() + c * ct.y());
+  const Eigen::Vector2d t = cf - rotated_ct;
+  return {t.x(), t.y(), heading};
+}
+
+Eigen::Matrix3Xd remove_root(const Eigen::Matrix3Xd& frame, const Root2& root) {
+  const double c = std::cos(root.z()), s = std::sin(root.z());
+  Eigen::Matrix3Xd out(3, frame.cols());
+  for (Eigen::Index v = 0; v < frame.cols(); ++v) {
+    const double x = frame(0, v) - root.x(), y = frame(1, v) - root.y();
+    out.col(v) << c * x + s * y, -s * x + c * y, frame(2, v);
+  }
+  return out;
+}
+
+Eigen::Matrix3Xd apply_root(const Eigen::Matrix3Xd& shape, const Root2& root) {
+  const double c = std::cos(root.z()), s = std::sin(root.z());
+  Eigen::Matrix3Xd out(3, shape.cols());
+  for (Eigen::Index v = 0; v < shape.cols(); ++v) {
+    const double x = shape(0, v), y = shape(1, v);
+    out.col(v) << c * x - s * y + root.x(), s * x + c * y + root.y(), shape(2, v);
+  }
+  return out;
+}
+
+std::vector<Root2> estimate_roots(std::span<const Eigen::Matrix3Xd> frames,
+                                  const Eigen::Matrix3Xd& templ, std::span<const double> torso) {
+  std::vector<Root2> roots;
+  roots.reserve(frames.size());
+  for (const Eigen::Matrix3Xd& f : frames) {
+    Root2 r = estimate_root(f, templ, torso);
+    if (!roots.empty()) {  // unwrap: continue from the previous heading
+      r.z() = roots.back().z() + wrap_angle(r.z() - roots.back().z());
+    }
+    roots.push_back(r);
+  }
+  return roots;
+}
+
+}  // namespace fourd::timewarp

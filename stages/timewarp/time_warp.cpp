@@ -1,0 +1,374 @@
+#include "stages/timewarp/time_warp.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+#include "pipeline/core/error.h"
+
+namespace fourd::timewarp {
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// Shapes as the columns of one matrix (3 #V rows), so all pairwise distances are one product.
+Eigen::MatrixXd stack(const std::vector<Eigen::Matrix3Xd>& shapes) {
+  const Eigen::Index rows = shapes.empty() ? 0 : shapes[0].size();
+  Eigen::MatrixXd m(rows, static_cast<Eigen::Index>(shapes.size()));
+  for (std::size_t k = 0; k < shapes.size(); ++k) {
+    m.col(static_cast<Eigen::Index>(k)) = shapes[k].reshaped();
+  }
+  return m;
+}
+
+// D(i, j) = |a_i - b_j|^2 / #V for columns a_i of `a` and b_j of `b` (3 #V rows each).
+Eigen::MatrixXd pairwise_distances(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
+  const double nv = static_cast<double>(a.rows()) / 3;
+  Eigen::MatrixXd d = -2 * a.transpose() * b;
+  d.colwise() += a.colwise().squaredNorm().transpose();
+  d.rowwise() += b.colwise().squaredNorm();
+  return d.cwiseMax(0.0) / nv;
+}
+
+// Central differences of samples taken every 1 / M of phase [per unit phase].
+std::vector<Eigen::Matrix3Xd> phase_velocities(const std::vector<Eigen::Matrix3Xd>& s,
+                                               bool cyclic) {
+  const int count = static_cast<int>(s.size());  // M + 1; for cycles s[M] == s[0]
+  const int m = count - 1;
+  std::vector<Eigen::Matrix3Xd> v(count);
+  for (int i = 0; i < count; ++i) {
+    int prev = i - 1, next = i + 1;
+    double span = 2;
+    if (cyclic) {
+      prev = (i - 1 + m) % m;
+      next = (i + 1) % m;
+    } else {
+      prev = std::max(prev, 0);
+      next = std::min(next, m);
+      span = next - prev;
+    }
+    v[i] = (s[next] - s[prev]) * (m / span);
+  }
+  return v;
+}
+
+// Parabola through (-1, a), (0, b), (1, c): the abscissa of its vertex, within [-0.5, 0.5].
+double parabola_vertex(double a, double b, double c) {
+  const double curvature = a - 2 * b + c;
+  if (!(curvature > 0)) return 0;
+  return std::clamp(0.5 * (a - c) / curvature, -0.5, 0.5);
+}
+
+// Dynamic time warping from (0, 0) to (M, M) with local slopes between 1/2 and 2 (steps
+// (1, 1), (1, 2), (2, 1)); returns, for every row i, the mean column of the path on that row.
+std::vector<double> dtw_path(const Eigen::MatrixXd& d, double slope_penalty) {
+  const int m = static_cast<int>(d.rows()) - 1;
+  Eigen::MatrixXd cost = Eigen::MatrixXd::Constant(m + 1, m + 1, kInf);
+  Eigen::MatrixXi step = Eigen::MatrixXi::Zero(m + 1, m + 1);  // 1 diagonal, 2 (1,2), 3 (2,1)
+  const double off = 1 + slope_penalty;
+  cost(0, 0) = d(0, 0);
+  for (int i = 1; i <= m; ++i) {
+    for (int j = 1; j <= m; ++j) {
+      double best = cost(i - 1, j - 1) + d(i, j);
+      int how = 1;
+      if (j >= 2) {
+        const double c = cost(i - 1, j - 2) + off * (d(i, j - 1) + d(i, j));
+        if (c < best) best = c, how = 2;
+      }
+      if (i >= 2) {
+        const double c = cost(i - 2, j - 1) + off * (d(i - 1, j) + d(i, j));
+        if (c < best) best = c, how = 3;
+      }
+      cost(i, j) = best;
+      step(i, j) = how;
+    }
+  }
+  std::vector<double> sum(m + 1, 0.0), count(m + 1, 0.0);
+  auto visit = [&](int i, int j) {
+    sum[i] += j;
+    count[i] += 1;
+  };
+  int i = m, j = m;
+  visit(i, j);
+  while (i > 0 || j > 0) {
+    switch (step(i, j)) {
+      case 2:
+        visit(i, j - 1);
+        i -= 1, j -= 2;
+        break;
+      case 3:
+        visit(i - 1, j);
+        i -= 2, j -= 1;
+        break;
+      default:
+        i -= 1, j -= 1;
+        break;
+    }
+    visit(i, j);
+  }
+  std::vector<double> path(m + 1);
+  for (int r = 0; r <= m; ++r) path[r] = sum[r] / count[r];
+  return path;
+}
+
+std::vector<Eigen::Matrix3Xd> sample_phases(const LocalTake& take, const TakeTiming& timing,
+                                            double offset, int m, int count) {
+  std::vector<Eigen::Matrix3Xd> s(count);
+  for (int i = 0; i < count; ++i) {
+    s[i] = shape_at_phase(take, timing, offset + static_cast<double>(i) / m);
+  }
+  return s;
+}
+
+}  // namespace
+
+Eigen::Matrix3Xd shape_at(const LocalTake& take, double x) {
+  const int n = take.num_frames();
+  const double c = std::clamp(x, 0.0, n - 1.0);
+  const int i = std::min(static_cast<int>(std::floor(c)), std::max(n - 2, 0));
+  const double a = c - i;
+  if (a <= 0 || n == 1) return take.shapes[i];
+  return (1 - a) * take.shapes[i] + a * take.shapes[i + 1];
+}
+
+Root2 root_at(const LocalTake& take, double x) {
+  const int n = take.num_frames();
+  const double c = std::clamp(x, 0.0, n - 1.0);
+  const int i = std::min(static_cast<int>(std::floor(c)), std::max(n - 2, 0));
+  const double a = c - i;
+  if (a <= 0 || n == 1) return take.roots[i];
+  return (1 - a) * take.roots[i] + a * take.roots[i + 1];  // headings are unwrapped
+}
+
+double shape_distance(const Eigen::Matrix3Xd& a, const Eigen::Matrix3Xd& b) {
+  return (a - b).colwise().squaredNorm().mean();
+}
+
+Cycle find_cycle(const LocalTake& take, const CycleOptions& options) {
+  const int n = take.num_frames();
+  if (n - 1 < options.min_cycle_frames || n < 3) {
+    throw InputError(fmt::format("take {}: {} frames cannot hold a cycle of at least {} frames",
+                                 take.name, n, std::max(options.min_cycle_frames, 2)));
+  }
+  const double eps = 1e-9;
+  auto velocity_weight = [](double lag) { return std::pow(lag / (2 * std::numbers::pi), 2); };
+  // Velocity at (fractional) frame x by one finite-difference stencil: 0 central, 1 forward,
+  // -1 backward. The two ends of a cycle are compared with the same stencil, so that its error
+  // (large for fast limbs at a low frame rate) cancels.
+  auto velocity = [&](double x, int kind) {
+    if (kind == 0) return Eigen::Matrix3Xd(0.5 * (shape_at(take, x + 1) - shape_at(take, x - 1)));
+    if (kind > 0) return Eigen::Matrix3Xd(shape_at(take, x + 1) - shape_at(take, x));
+    return Eigen::Matrix3Xd(shape_at(take, x) - shape_at(take, x - 1));
+  };
+  // State distance between frame s and the state at s + p: shape, plus velocity. Where no
+  // stencil fits at both ends (the cycle spans the whole take), the velocities are compared
+  // across the seam: forward at the start minus backward at the end is, for a smooth join, the
+  // second difference there, estimated from the neighbouring frames on both sides.
+  struct Closure {
+    double shape = 0, velocity = 0;
+    bool has_velocity = false;
+    double total(double w) const { return shape + w * velocity; }
+  };
+  auto closure = [&](int s, double p) {
+    Closure c;
+    c.shape = shape_distance(take.shapes[s], shape_at(take, s + p));
+    const bool before = s >= 1, after = s + p + 1 <= n - 1 + eps;
+    if (before || after) {
+      const int kind = before && after ? 0 : after ? 1 : -1;
+      c.velocity = shape_distance(velocity(s, kind), velocity(s + p, kind));
+    } else {
+      const Eigen::Matrix3Xd x0 = take.shapes[s], x1 = shape_at(take, s + 1),
+                             x2 = shape_at(take, s + 2), y0 = shape_at(take, s + p),
+                             y1 = shape_at(take, s + p - 1), y2 = shape_at(take, s + p - 2);
+      const Eigen::Matrix3Xd jump = (x1 - x0) - (y0 - y1);
+      c.velocity = shape_distance(jump, 0.5 * ((x2 - 2 * x1 + x0) + (y0 - 2 * y1 + y2)));
+    }
+    c.has_velocity = true;
+    return c;
+  };
+  // Mean state distance between frames p apart, over every start that fits.
+  auto mean_at = [&](double p) {
+    double sum = 0;
+    int count = 0;
+    for (int s = 0; s + p <= n - 1 + eps; ++s, ++count) sum += closure(s, p).total(velocity_weight(p));
+    return count ? sum / count : kInf;
+  };
+  std::vector<double> mean_at_lag(n, kInf);
+  double lo = kInf, hi = 0;
+  for (int lag = options.min_cycle_frames; lag <= n - 1; ++lag) {
+    mean_at_lag[lag] = mean_at(lag);
+    lo = std::min(lo, mean_at_lag[lag]);
+    hi = std::max(hi, mean_at_lag[lag]);
+  }
+  // The shortest lag at a local minimum close to the best: one cycle, not two.
+  int period = -1;
+  for (int lag = options.min_cycle_frames + 1; lag <= n - 1 && period < 0; ++lag) {
+    const bool local_min = mean_at_lag[lag] <= mean_at_lag[lag - 1] &&
+                           (lag == n - 1 || mean_at_lag[lag] <= mean_at_lag[lag + 1]);
+    if (local_min && mean_at_lag[lag] <= lo + 0.2 * (hi - lo)) period = lag;
+  }
+  if (period < 0) {
+    period = static_cast<int>(std::min_element(mean_at_lag.begin(), mean_at_lag.end()) -
+                              mean_at_lag.begin());
+  }
+  // Fractional period.
+  const double step = 0.1;
+  double best_p = period, best = mean_at(period);
+  for (double p = period - 1 + step; p < period + 1 - eps; p += step) {
+    if (p < options.min_cycle_frames || p > n - 1 + eps) continue;
+    const double c = mean_at(p);
+    if (c < best) best = c, best_p = p;
+  }
+  const double a = mean_at(best_p - step), c = mean_at(best_p + step);
+  if (std::isfinite(a) && std::isfinite(c)) best_p += step * parabola_vertex(a, best, c);
+  best_p = std::min(best_p, n - 1.0);
+
+  Cycle cycle;
+  cycle.period = best_p;
+  Closure best_closure;
+  double best_total = kInf;
+  for (int s = 0; s + best_p <= n - 1 + eps; ++s) {
+    const Closure cl = closure(s, best_p);
+    if (cl.total(velocity_weight(best_p)) < best_total) {
+      best_total = cl.total(velocity_weight(best_p));
+      best_closure = cl;
+      cycle.start = s;
+    }
+  }
+  cycle.closure_rms = std::sqrt(best_closure.shape);
+  // Variation of shape and (central) velocity over the cycle's frames.
+  const int first = static_cast<int>(cycle.start);
+  const int last = static_cast<int>(std::floor(cycle.start + cycle.period + eps));
+  Eigen::Matrix3Xd mean_x = Eigen::Matrix3Xd::Zero(3, take.shapes[0].cols());
+  Eigen::Matrix3Xd mean_v = mean_x;
+  std::vector<Eigen::Matrix3Xd> v;
+  for (int f = std::max(first, 1); f <= std::min(last, n - 2); ++f) v.push_back(velocity(f, 0));
+  for (int f = first; f <= last; ++f) mean_x += take.shapes[f] / (last - first + 1);
+  for (const auto& x : v) mean_v += x / static_cast<double>(v.size());
+  double var_x = 0, var_v = 0;
+  for (int f = first; f <= last; ++f) var_x += shape_distance(take.shapes[f], mean_x) / (last - first + 1);
+  for (const auto& x : v) var_v += shape_distance(x, mean_v) / static_cast<double>(v.size());
+  cycle.variation_rms = std::sqrt(var_x);
+  const double w = velocity_weight(best_p);
+  const double variation = best_closure.has_velocity && !v.empty() ? var_x + w * var_v : var_x;
+  cycle.closure_ratio = variation > 0 ? std::sqrt(best_closure.total(w) / variation) : kInf;
+  if (!(cycle.closure_ratio <= options.max_closure_ratio)) {
+    throw InputError(fmt::format(
+        "take {}: cannot close a cycle: the best cycle (frames {:.2f} to {:.2f}, {:.2f} frames) "
+        "ends {:.1f} mm RMS away from its start and its state (shape and motion) differs by "
+        "{:.0f} % of its variation over the cycle (at most {:.0f} %). Is the take shorter than "
+        "one cycle, or not cyclic?",
+        take.name, cycle.start, cycle.start + cycle.period, cycle.period, 1000 * cycle.closure_rms,
+        100 * cycle.closure_ratio, 100 * options.max_closure_ratio));
+  }
+  return cycle;
+}
+
+double TakeTiming::frame_at(double u) const {
+  if (cyclic) return start + (u - std::floor(u)) * length;
+  return std::clamp(u, 0.0, 1.0) * length;
+}
+
+TakeTiming one_shot_timing(const LocalTake& take) {
+  return TakeTiming{false, 0.0, static_cast<double>(take.num_frames() - 1)};
+}
+
+TakeTiming cyclic_timing(const Cycle& cycle) { return TakeTiming{true, cycle.start, cycle.period}; }
+
+Eigen::Matrix3Xd shape_at_phase(const LocalTake& take, const TakeTiming& timing, double u) {
+  if (!timing.cyclic) return shape_at(take, timing.frame_at(u));
+  const double f = u - std::floor(u);
+  const Eigen::Matrix3Xd gap =
+      shape_at(take, timing.start + timing.length) - shape_at(take, timing.start);
+  return shape_at(take, timing.start + f * timing.length) - f * gap;
+}
+
+Root2 root_at_phase(const LocalTake& take, const TakeTiming& timing, double u) {
+  if (!timing.cyclic) return root_at(take, timing.frame_at(u));
+  const double whole = std::floor(u);
+  Root2 r = root_at(take, timing.start + (u - whole) * timing.length);
+  // One cycle later the body repeats its motion relative to where the cycle started:
+  // root(x + period) = W root(x) with W = root(end) root(start)^-1.
+  const Root2 w = compose(root_at(take, timing.start + timing.length),
+                          inverse(root_at(take, timing.start)));
+  const Root2 step = whole >= 0 ? w : inverse(w);
+  for (int k = 0; k < std::abs(static_cast<int>(whole)); ++k) r = compose(step, r);
+  return r;
+}
+
+double Warp::at(double u) const {
+  const int m = static_cast<int>(knots.size()) - 1;
+  const double pos = std::clamp(u, 0.0, 1.0) * m;
+  const int i = std::min(static_cast<int>(std::floor(pos)), m - 1);
+  const double a = pos - i;
+  return offset + (1 - a) * knots[i] + a * knots[i + 1];
+}
+
+double Warp::inverse(double v) const {
+  const int m = static_cast<int>(knots.size()) - 1;
+  const double w = std::clamp(v - offset, 0.0, 1.0);
+  const auto it = std::upper_bound(knots.begin(), knots.end(), w);
+  const int b = std::clamp(static_cast<int>(it - knots.begin()), 1, m), a = b - 1;
+  const double span = knots[b] - knots[a];
+  const double f = span > 0 ? (w - knots[a]) / span : 0.0;
+  return (a + std::clamp(f, 0.0, 1.0)) / m;
+}
+
+Warp identity_warp(int intervals) {
+  Warp w;
+  w.knots.resize(intervals + 1);
+  for (int i = 0; i <= intervals; ++i) w.knots[i] = static_cast<double>(i) / intervals;
+  return w;
+}
+
+Warp register_take(const LocalTake& reference, const TakeTiming& reference_timing,
+                   const LocalTake& take, const TakeTiming& timing, const WarpOptions& options) {
+  const bool cyclic = reference_timing.cyclic;
+  const int m = std::max(4, static_cast<int>(std::lround(options.oversample *
+                                                          reference_timing.length)));
+  const std::vector<Eigen::Matrix3Xd> a = sample_phases(reference, reference_timing, 0, m, m + 1);
+  const std::vector<Eigen::Matrix3Xd> va = phase_velocities(a, cyclic);
+  const Eigen::MatrixXd xa = stack(a), xva = stack(va);
+  auto distances = [&](const std::vector<Eigen::Matrix3Xd>& b) {
+    return Eigen::MatrixXd(pairwise_distances(xa, stack(b)) +
+                           options.velocity_weight *
+                               pairwise_distances(xva, stack(phase_velocities(b, cyclic))));
+  };
+
+  Warp warp;
+  if (cyclic) {
+    // Circular search for the phase offset under a uniform warp, refined by a parabola.
+    const Eigen::MatrixXd d = distances(sample_phases(take, timing, 0, m, m + 1));
+    std::vector<double> cost(m, 0.0);
+    for (int o = 0; o < m; ++o) {
+      for (int i = 0; i < m; ++i) cost[o] += d(i, (i + o) % m);
+    }
+    const int best = static_cast<int>(std::min_element(cost.begin(), cost.end()) - cost.begin());
+    const double delta =
+        parabola_vertex(cost[(best - 1 + m) % m], cost[best], cost[(best + 1) % m]);
+    warp.offset = (best + delta) / m;
+    warp.offset -= std::floor(warp.offset);
+  }
+  const Eigen::MatrixXd d = distances(sample_phases(take, timing, warp.offset, m, m + 1));
+  std::vector<double> path = dtw_path(d, options.slope_penalty);
+  for (double& p : path) p /= m;
+  for (int pass = 0; pass < options.smoothing; ++pass) {
+    std::vector<double> s = path;
+    for (int i = 1; i < m; ++i) s[i] = 0.25 * (path[i - 1] + 2 * path[i] + path[i + 1]);
+    path = s;
+  }
+  // Strictly increasing from 0 to 1, so the warp can be inverted.
+  path.front() = 0;
+  const double tiny = 1e-6 / m;
+  for (int i = 1; i <= m; ++i) path[i] = std::max(path[i], path[i - 1] + tiny);
+  const double end = path.back();
+  for (double& p : path) p /= end;
+  warp.knots = std::move(path);
+  return warp;
+}
+
+}  // namespace fourd::timewarp

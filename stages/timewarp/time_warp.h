@@ -1,0 +1,99 @@
+#pragma once
+// Time registration of the takes of one motion class (paper section 3.1: t = f(t_i), so that
+// corresponding poses of every take share t in [0, 1]).
+//
+// Every take is first seen as a function of a phase u:
+//  - one-shot (jump, reach): u in [0, 1] spans the whole take, frame x = u (n - 1);
+//  - cyclic (walk, run, turn): one complete cycle [start, start + period] of the take (found by
+//    find_cycle, fractional frames) is a periodic function of u: frame x = start + frac(u)
+//    period. Its shape is corrected for the small closure residual (the gap between the shapes
+//    at the cycle's ends is spread linearly over the cycle), so the cycle's end joins its start
+//    exactly; its root keeps accumulating whole cycles (u >= 1 is the next cycle).
+// Takes are then registered to the class's first take (the reference) by dynamic time warping
+// over a distance of root-free shape and phase velocity sampled `oversample` times per frame;
+// for cycles, a phase offset is found first by a circular search (refined to a fraction of a
+// sample), then DTW runs from that offset once around the cycle.
+#include <Eigen/Core>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "stages/timewarp/root_motion.h"
+
+namespace fourd::timewarp {
+
+// One take with its root motion removed, frame by frame.
+struct LocalTake {
+  std::string name;
+  std::vector<Eigen::Matrix3Xd> shapes;  // #frames, 3 x #V each, root removed
+  std::vector<Root2> roots;              // #frames, headings unwrapped
+  int num_frames() const { return static_cast<int>(shapes.size()); }
+};
+
+// Linear interpolation at a continuous frame position x (clamped to [0, n - 1]).
+Eigen::Matrix3Xd shape_at(const LocalTake& take, double x);
+Root2 root_at(const LocalTake& take, double x);
+
+// Mean squared vertex distance [m^2].
+double shape_distance(const Eigen::Matrix3Xd& a, const Eigen::Matrix3Xd& b);
+
+struct CycleOptions {
+  int min_cycle_frames = 4;        // shortest cycle considered [frames]
+  double max_closure_ratio = 0.3;  // closure / variation of the cycle's state, at most
+};
+
+// A cycle is judged on the body's state, its shape and its velocity: a take cut at two poses
+// that look alike but move differently (a swing forward and the swing back) does not close.
+// Velocities are per frame, weighted by (period / 2 pi)^2 so both terms have the scale of a
+// shape (for a sinusoidal motion they vary equally).
+struct Cycle {
+  double start = 0;          // first frame of the cycle (fractional)
+  double period = 0;         // cycle length [frames] (fractional)
+  double closure_rms = 0;    // RMS vertex distance between the shapes at start and end [m]
+  double variation_rms = 0;  // RMS vertex distance of the cycle's shapes from their mean [m]
+  double closure_ratio = 0;  // state closure / state variation over the cycle
+};
+
+// The best complete cycle of a cyclic take: the period minimises the mean state distance
+// between frames one period apart (refined to a fraction of a frame), the start the closure
+// distance. Throws InputError naming the take if it is shorter than min_cycle_frames + 1 frames
+// or its best cycle cannot be closed (closure_ratio above max_closure_ratio).
+Cycle find_cycle(const LocalTake& take, const CycleOptions& options);
+
+// Where a take's phase lives in its frames (see the top of this file).
+struct TakeTiming {
+  bool cyclic = false;
+  double start = 0;   // cyclic: cycle start frame; one-shot: 0
+  double length = 0;  // cyclic: period [frames]; one-shot: n - 1
+  double frame_at(double u) const;  // continuous frame position of phase u
+};
+TakeTiming one_shot_timing(const LocalTake& take);
+TakeTiming cyclic_timing(const Cycle& cycle);
+
+// Shape (closure-corrected for cycles) and world root at phase u.
+Eigen::Matrix3Xd shape_at_phase(const LocalTake& take, const TakeTiming& timing, double u);
+Root2 root_at_phase(const LocalTake& take, const TakeTiming& timing, double u);
+
+// A monotone map from the reference's phase to a take's phase: the take's phase at reference
+// phase u in [0, 1] is offset + knots interpolated at u (knots from 0 to 1, M + 1 of them,
+// strictly increasing). The reference take's own warp is the identity.
+struct Warp {
+  double offset = 0;           // cyclic: phase of the take at the reference's phase 0
+  std::vector<double> knots;   // M + 1 values at u = i / M
+  double at(double u) const;        // offset + knots(u)
+  double inverse(double v) const;   // u with knots(u) = v - offset (v - offset in [0, 1])
+};
+Warp identity_warp(int intervals);
+
+struct WarpOptions {
+  int oversample = 4;            // phase samples per frame of the reference take
+  double velocity_weight = 0.01; // weight of the phase-velocity term of the distance [cycle^2]
+  double slope_penalty = 0.1;    // extra cost of non-diagonal DTW steps (relative)
+  int smoothing = 2;             // [1 2 1] smoothing passes over the DTW path
+};
+
+// Registers `take` to the reference take. Both timings must be of the same kind.
+Warp register_take(const LocalTake& reference, const TakeTiming& reference_timing,
+                   const LocalTake& take, const TakeTiming& timing, const WarpOptions& options);
+
+}  // namespace fourd::timewarp

@@ -1,0 +1,105 @@
+#pragma once
+// The timewarp stage: for each motion class of session.yaml, separates root motion from body
+// shape, extracts closed cycles of cyclic takes, registers the takes in time (time_warp.h) and
+// resamples them at common times t_i = i / (F - 1), so that corresponding poses of every take
+// share t. Reads the align stage's output (align/template.ply + align/<take>/<frame>.ply, one
+// topology), or oracle/align/ in oracle mode.
+//
+// Writes, per class, into timewarp/ (timewarp_oracle/ in oracle mode):
+//   <class>.twarp   the resampled class (timewarp_io.h), read by the motionspace stage
+//   <class>.json    per take: cycle, phase offset, the t of every captured frame, root motion
+// and options.yaml (the options used). Every class is computed before anything is written, and
+// the folder is replaced as a whole, so a failure leaves the previous outputs untouched.
+#include <Eigen/Core>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "pipeline/core/config.h"
+#include "pipeline/core/mesh.h"
+#include "pipeline/core/session.h"
+#include "stages/common/stage.h"
+#include "stages/timewarp/time_warp.h"
+
+namespace fourd::timewarp {
+
+struct TimewarpOptions {
+  int samples = 0;                 // samples per class; 0: one per frame of the longest take
+  int min_cycle_frames = 4;        // shortest cycle considered [frames]
+  double max_closure_ratio = 0.3;  // closure RMS / pose variation of a cycle, at most
+  int oversample = 4;              // DTW phase samples per frame
+  double velocity_weight = 0.01;   // weight of the phase velocity in the DTW distance [cycle^2]
+  double slope_penalty = 0.1;      // extra cost of non-diagonal DTW steps
+  int smoothing = 2;               // smoothing passes over the DTW path
+
+  template <class V>
+  void visit(V& v) {
+    v("samples", samples, "samples per class (0: automatic)", Range{0, 100000});
+    v("min_cycle_frames", min_cycle_frames, "shortest cycle [frames]", Range{2, 100000});
+    v("max_closure_ratio", max_closure_ratio, "closure RMS / pose variation of a cycle, at most",
+      Range{0, 10});
+    v("oversample", oversample, "DTW phase samples per frame", Range{1, 64});
+    v("velocity_weight", velocity_weight, "phase-velocity weight in the DTW distance",
+      Range{0, 1e6});
+    v("slope_penalty", slope_penalty, "extra cost of non-diagonal DTW steps", Range{0, 100});
+    v("smoothing", smoothing, "smoothing passes over the DTW path", Range{0, 100});
+  }
+  CycleOptions cycle() const { return {min_cycle_frames, max_closure_ratio}; }
+  WarpOptions warp() const { return {oversample, velocity_weight, slope_penalty, smoothing}; }
+};
+
+// One take of a registered class.
+struct WarpedTake {
+  std::string name;
+  int num_frames = 0;            // captured frames of the take
+  Cycle cycle;                   // cyclic classes only
+  TakeTiming timing;
+  Warp warp;                     // reference phase -> this take's phase
+  std::vector<double> frame_t;   // the class time t of every captured frame (cycles: wrapped)
+  // Per sample i (t_i = i / (F - 1)):
+  std::vector<double> sample_frames;  // F: continuous frame position in the take
+  std::vector<double> seconds;        // F: the take's own time since sample 0 [s]
+  std::vector<Root2> roots;           // F: root relative to sample 0
+  std::vector<Vec3f> shapes;          // F x #V (sample-major): body shape, root removed
+};
+
+struct WarpedClass {
+  std::string name;
+  std::string parameter;
+  bool cyclic = false;
+  double fps = 0;
+  int num_vertices = 0;
+  int num_samples = 0;                  // F
+  std::vector<Tri> triangles;           // the template's
+  Eigen::Matrix3Xd template_positions;  // 3 x #V
+  double character_height = 0;          // [m]
+  std::vector<WarpedTake> takes;        // reference first
+
+  // Shape of take k at sample i as a 3 x #V matrix.
+  Eigen::Matrix3Xd shape(int take, int sample) const;
+};
+
+// The template and the frames of one take: align/<take>/000000.ply, 000001.ply, ... (frame
+// numbers contiguous from 0). Throws InputError naming the take and frame for a missing
+// folder, a gap, a frame with another vertex count or topology than the template, or
+// non-finite positions.
+struct AlignedInput {
+  Mesh template_mesh;
+  std::filesystem::path dir;
+};
+AlignedInput open_aligned_input(const std::filesystem::path& dir);
+std::vector<Eigen::Matrix3Xd> load_take(const AlignedInput& input, const std::string& take);
+
+// Removes root motion from a take's frames.
+LocalTake make_local_take(const std::string& name, std::vector<Eigen::Matrix3Xd> frames,
+                          const Eigen::Matrix3Xd& template_positions,
+                          const std::vector<double>& torso);
+
+// Registers and resamples one class. Throws InputError for a class with fewer than 2 or more
+// than 3 takes, takes that do not fit together, or a cycle that cannot be closed (naming it).
+WarpedClass warp_class(const MotionClassConfig& motion, double fps, const Mesh& template_mesh,
+                       std::vector<LocalTake> takes, const TimewarpOptions& options);
+
+void run_timewarp(const Session& session, const StageArgs& args);
+
+}  // namespace fourd::timewarp

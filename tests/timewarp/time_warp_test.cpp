@@ -1,0 +1,190 @@
+// Root motion, cycle extraction and time registration on the synthetic walker, whose phase
+// and root motion are known exactly.
+#include "stages/timewarp/time_warp.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "pipeline/core/error.h"
+#include "stages/timewarp/root_motion.h"
+#include "stages/timewarp/timewarp.h"
+#include "tests/timewarp/walker.h"
+
+namespace fourd::timewarp {
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180;
+
+// Circular distance between phases, in cycles (-0.5, 0.5].
+double phase_difference(double a, double b) {
+  double d = std::fmod(a - b, 1.0);
+  if (d > 0.5) d -= 1;
+  if (d <= -0.5) d += 1;
+  return d;
+}
+
+LocalTake local_walk(const test::Walker& w, const test::WalkSpec& spec, const std::string& name) {
+  const std::vector<double> torso = torso_weights(w.mesh.positions);
+  return make_local_take(name, test::walk_frames(w, spec), w.mesh.positions, torso);
+}
+
+TEST(RootMotion, TorsoIsTheUpperBodyNearTheAxis) {
+  const test::Walker w = test::make_walker();
+  const std::vector<double> torso = torso_weights(w.mesh.positions);
+  double sum = 0;
+  int selected = 0, legs = 0;
+  for (int v = 0; v < static_cast<int>(torso.size()); ++v) {
+    sum += torso[v];
+    if (torso[v] > 0) {
+      ++selected;
+      if (v >= w.torso_end) ++legs;
+    }
+  }
+  EXPECT_NEAR(sum, 1.0, 1e-12);
+  EXPECT_GT(selected, 10);
+  EXPECT_EQ(legs, 0);
+}
+
+TEST(RootMotion, RecoversARigidGroundPlaneMotion) {
+  const test::Walker w = test::make_walker();
+  const std::vector<double> torso = torso_weights(w.mesh.positions);
+  const Root2 root(1.3, -0.7, 2.9);  // close to +-pi: the heading must not flip
+  const Eigen::Matrix3Xd moved = apply_root(w.mesh.positions, root);
+  const Root2 found = estimate_root(moved, w.mesh.positions, torso);
+  EXPECT_NEAR(found.x(), root.x(), 1e-9);
+  EXPECT_NEAR(found.y(), root.y(), 1e-9);
+  EXPECT_NEAR(wrap_angle(found.z() - root.z()), 0.0, 1e-9);
+  EXPECT_LT(test::max_vertex_distance(remove_root(moved, found), w.mesh.positions), 1e-9);
+}
+
+TEST(RootMotion, ComposeAndInverseAreConsistent) {
+  const Root2 a(0.5, 1.0, 0.7), b(-0.2, 0.3, -2.0);
+  const Root2 ab = compose(a, b);
+  EXPECT_LT((relative(a, ab) - b).norm(), 1e-12);
+  EXPECT_LT(compose(a, inverse(a)).norm(), 1e-12);
+  const Eigen::Matrix3Xd p = Eigen::Matrix3Xd::Random(3, 5);
+  EXPECT_LT(test::max_vertex_distance(apply_root(apply_root(p, b), a), apply_root(p, ab)), 1e-12);
+}
+
+TEST(RootMotion, HeadingsOfATurningWalkAreUnwrapped) {
+  const test::Walker w = test::make_walker();
+  test::WalkSpec spec;
+  spec.turn_rate = 180 * kDeg;  // half a turn per second: crosses +-pi within the take
+  spec.frames = 40;
+  spec.start_heading = 150 * kDeg;
+  const LocalTake take = local_walk(w, spec, "turn");
+  for (int f = 0; f < spec.frames; ++f) {
+    // The torso twists by up to 0.05 rad with the gait; the root follows the walk's heading.
+    EXPECT_NEAR(take.roots[f].z(), test::walk_root(spec, f).z(), 0.06) << "frame " << f;
+  }
+}
+
+TEST(Cycle, FindsAFractionalPeriodAndClosesIt) {
+  const test::Walker w = test::make_walker();
+  for (double period : {12.0, 12.5, 15.3}) {
+    test::WalkSpec spec;
+    spec.cycle_frames = period;
+    spec.frames = 30;
+    spec.turn_rate = 20 * kDeg;
+    const LocalTake take = local_walk(w, spec, "walk");
+    const Cycle c = find_cycle(take, CycleOptions{});
+    EXPECT_NEAR(c.period, period, 0.1) << "period " << period;
+    EXPECT_LT(c.closure_rms, 0.1 * c.variation_rms);
+    // The closure-corrected cycle joins its start exactly.
+    const TakeTiming timing = cyclic_timing(c);
+    EXPECT_LT(test::max_vertex_distance(shape_at_phase(take, timing, 0.0),
+                                        shape_at_phase(take, timing, 1.0 - 1e-12)),
+              1e-6);
+  }
+}
+
+TEST(Cycle, RootOfTheNextCycleContinuesTheMotion) {
+  const test::Walker w = test::make_walker();
+  test::WalkSpec spec;
+  spec.cycle_frames = 12;
+  spec.frames = 13;
+  spec.turn_rate = 30 * kDeg;
+  const LocalTake take = local_walk(w, spec, "walk");
+  const TakeTiming timing = cyclic_timing(Cycle{0, 12, 0, 1});
+  // Phase 1.5 lies in the next cycle: the walk's root 18 frames on, although the take ends at 12.
+  const Root2 r = root_at_phase(take, timing, 1.5);
+  const Root2 truth = test::walk_root(spec, 18);
+  EXPECT_NEAR(r.x(), truth.x(), 0.02);
+  EXPECT_NEAR(r.y(), truth.y(), 0.02);
+  EXPECT_NEAR(r.z(), truth.z(), 0.06);
+}
+
+TEST(Cycle, ATakeShorterThanACycleCannotBeClosed) {
+  const test::Walker w = test::make_walker();
+  test::WalkSpec spec;
+  spec.cycle_frames = 20;
+  spec.frames = 12;  // only 60 % of a cycle
+  const LocalTake take = local_walk(w, spec, "walk_short");
+  try {
+    find_cycle(take, CycleOptions{});
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("walk_short"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("cannot close"), std::string::npos) << e.what();
+  }
+  spec.frames = 3;
+  EXPECT_THROW(find_cycle(local_walk(w, spec, "tiny"), CycleOptions{}), InputError);
+}
+
+TEST(Register, CyclesOfDifferentPeriodsAndStartsShareThePhase) {
+  const test::Walker w = test::make_walker();
+  test::WalkSpec slow;
+  slow.cycle_frames = 15;
+  slow.frames = 18;
+  slow.start_phase = 0.1;
+  test::WalkSpec fast = slow;
+  fast.amplitude = 0.5;
+  fast.cycle_frames = 11.5;
+  fast.speed = 1.7;
+  fast.start_phase = 0.65;
+  fast.turn_rate = 15 * kDeg;
+  const LocalTake a = local_walk(w, slow, "slow"), b = local_walk(w, fast, "fast");
+  const TakeTiming ta = cyclic_timing(find_cycle(a, CycleOptions{}));
+  const TakeTiming tb = cyclic_timing(find_cycle(b, CycleOptions{}));
+  const Warp warp = register_take(a, ta, b, tb, WarpOptions{});
+  // At reference phase u, take b must be at the same gait phase as the reference.
+  for (int i = 0; i <= 20; ++i) {
+    const double u = i / 20.0;
+    const double phase_a = slow.start_phase + ta.frame_at(u) / slow.cycle_frames;
+    const double phase_b = fast.start_phase + tb.frame_at(warp.at(u)) / fast.cycle_frames;
+    EXPECT_LT(std::abs(phase_difference(phase_a, phase_b)) * fast.cycle_frames, 0.25)
+        << "u " << u;
+  }
+  // The inverse maps back.
+  for (double u : {0.1, 0.37, 0.8}) EXPECT_NEAR(warp.inverse(warp.at(u)), u, 1e-9);
+}
+
+TEST(Register, OneShotsWithANonUniformTimingAreAligned) {
+  const test::Walker w = test::make_walker();
+  const std::vector<double> torso = torso_weights(w.mesh.positions);
+  test::JumpSpec a_spec;
+  test::JumpSpec b_spec;
+  b_spec.length = 1.1;
+  b_spec.height = 0.25;
+  b_spec.frames = 30;
+  b_spec.time_power = 1.4;  // b runs through the jump non-uniformly
+  const LocalTake a =
+      make_local_take("short", test::jump_frames(w, a_spec), w.mesh.positions, torso);
+  const LocalTake b = make_local_take("long", test::jump_frames(w, b_spec), w.mesh.positions, torso);
+  const Warp warp = register_take(a, one_shot_timing(a), b, one_shot_timing(b), WarpOptions{});
+  double error = 0;
+  int count = 0;
+  for (int f = 0; f < a_spec.frames; ++f) {
+    const double u = static_cast<double>(f) / (a_spec.frames - 1);
+    // Same normalised jump time u in both: b's frame is the one with jump_time == u.
+    const double b_frame = std::pow(u, 1 / b_spec.time_power) * (b_spec.frames - 1);
+    error += std::abs(one_shot_timing(b).frame_at(warp.at(u)) - b_frame);
+    ++count;
+  }
+  EXPECT_LT(error / count, 0.5);  // mean error [frames of b]
+}
+
+}  // namespace
+}  // namespace fourd::timewarp
