@@ -345,4 +345,43 @@ HybridBuildReport build_hybrid_references(const HybridBuildOptions& options,
   return report;
 }
 
+void add_line_references(const Eigen::Matrix3Xd& reference, std::span<const Tri> triangles,
+                         std::span<const double> s, BlendSpace* space) {
+  check_space(*space, reference);
+  if (space->num_inputs != 2) {
+    throw InputError(fmt::format("line references: the space has {} inputs, expected 2",
+                                 space->num_inputs));
+  }
+  for (std::size_t j = 0; j < s.size(); ++j) {
+    if (!(s[j] > 0 && s[j] < 1) || (j > 0 && !(s[j] > s[j - 1]))) {
+      throw InputError(fmt::format("line references: weights must increase strictly inside (0, 1) "
+                                   "(reference {} at {})",
+                                   j, s[j]));
+    }
+  }
+  std::vector<int> refs;
+  for (double sj : s) refs.push_back(add_reference(space, std::array<double, 2>{1 - sj, sj}));
+  NonlinearBlendData data;
+  nonlinear_blend_precompute(reference, triangles, &data);
+  tbb::parallel_for(0, space->num_frames, [&](int f) {
+    std::vector<Eigen::Matrix3Xd> inputs{frame_positions(*space, 0, f),
+                                         frame_positions(*space, 1, f)};
+    NonlinearBlendInputs prepared;
+    nonlinear_blend_prepare(data, inputs, &prepared);
+    Eigen::Matrix3Xd x;
+    for (std::size_t j = 0; j < refs.size(); ++j) {
+      nonlinear_blend_solve(data, prepared, std::array<double, 2>{1 - s[j], s[j]}, &x);
+      store_frame(x, refs[j], f, space);
+    }
+  });
+  space->cells.clear();
+  int previous = 0;
+  for (int r : refs) {
+    space->cells.push_back({previous, r, -1});
+    previous = r;
+  }
+  space->cells.push_back({previous, 1, -1});
+  space->check();
+}
+
 }  // namespace fourd

@@ -55,4 +55,12 @@ HybridBuildReport build_hybrid_references(const HybridBuildOptions& options,
                                           const Eigen::Matrix3Xd& reference,
                                           std::span<const Tri> triangles, BlendSpace* space);
 
+// Fixed references on the weight line of a 2-input space (the paper's Table 1: "hybrid with 1
+// reference" is s = {0.5}, "with 3 references" s = {0.25, 0.5, 0.75}): adds a reference at
+// weights (1 - s_j, s_j) for each s_j, strictly increasing inside (0, 1), stores its non-linear
+// blend at every frame and tiles the line with the segments between consecutive references.
+// `space` must hold only its 2 inputs and the single cell. Throws InputError otherwise.
+void add_line_references(const Eigen::Matrix3Xd& reference, std::span<const Tri> triangles,
+                         std::span<const double> s, BlendSpace* space);
+
 }  // namespace fourd

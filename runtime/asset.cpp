@@ -1,0 +1,188 @@
+#include "runtime/asset.h"
+
+#include <fmt/format.h>
+
+#include <cstdint>
+
+#include "pipeline/core/binary_format.h"
+#include "pipeline/core/error.h"
+
+namespace fourd {
+
+namespace {
+
+constexpr FileMagic kAssetMagic("FOURDAS");
+
+// Bounds on counts read from a file, so a corrupt count fails with a message instead of a huge
+// allocation (the reader also checks every array against the bytes left).
+constexpr std::uint64_t kMaxSpaces = 1024;
+constexpr std::uint64_t kMaxEdges = 1024 * 1024;
+
+void write_floats(BinaryWriter& w, const AlignedFloats& values) {
+  w.write_span(std::span<const float>(values.data(), values.size()));
+}
+
+AlignedFloats read_floats(BinaryReader& r, const char* what) {
+  const auto count = r.read<std::uint64_t>();
+  if (count > r.remaining() / sizeof(float)) {
+    throw InputError(fmt::format("{}: truncated {} ({} floats announced, {} bytes left)",
+                                 r.path().string(), what, count, r.remaining()));
+  }
+  AlignedFloats values(count);
+  r.read_bytes(values.data(), count * sizeof(float));
+  return values;
+}
+
+void write_space(BinaryWriter& w, const GraphSpace& g) {
+  const MotionSpace& s = g.motion;
+  const BlendSpace& b = s.blend;
+  w.write_string(s.name);
+  w.write<std::uint8_t>(s.cyclic ? 1 : 0);
+  w.write<std::uint64_t>(s.takes.size());
+  for (const std::string& take : s.takes) w.write_string(take);
+  w.write<double>(s.character_height);
+  w.write_vector(s.triangles);
+  w.write<std::int32_t>(b.num_inputs);
+  w.write<std::int32_t>(b.num_vertices);
+  w.write<std::int32_t>(b.num_frames);
+  w.write<std::int32_t>(b.plane_stride);
+  w.write_vector(b.reference_weights);
+  write_floats(w, b.frames);
+  w.write_vector(b.cells);
+  write_floats(w, g.normals);
+  w.write_vector(s.roots);
+  w.write_vector(s.seconds);
+  const ParameterMap& m = s.parameter_map;
+  w.write_string(m.parameter);
+  w.write_string(m.unit);
+  w.write<std::int32_t>(m.num_inputs);
+  w.write_vector(m.path);
+  w.write_vector(m.values);
+}
+
+GraphSpace read_space(BinaryReader& r) {
+  GraphSpace g;
+  MotionSpace& s = g.motion;
+  BlendSpace& b = s.blend;
+  s.name = r.read_string();
+  s.cyclic = r.read<std::uint8_t>() != 0;
+  const auto takes = r.read<std::uint64_t>();
+  if (takes > 3) {
+    throw InputError(fmt::format("{}: motion space '{}' has {} takes (1 to 3 supported)",
+                                 r.path().string(), s.name, takes));
+  }
+  for (std::uint64_t k = 0; k < takes; ++k) s.takes.push_back(r.read_string());
+  s.character_height = r.read<double>();
+  s.triangles = r.read_vector<Tri>();
+  b.num_inputs = r.read<std::int32_t>();
+  b.num_vertices = r.read<std::int32_t>();
+  b.num_frames = r.read<std::int32_t>();
+  b.plane_stride = r.read<std::int32_t>();
+  b.reference_weights = r.read_vector<double>();
+  b.frames = read_floats(r, "blend frames");
+  b.cells = r.read_vector<std::array<int, 3>>();
+  g.normals = read_floats(r, "normals");
+  s.roots = r.read_vector<RootPose>();
+  s.seconds = r.read_vector<float>();
+  ParameterMap& m = s.parameter_map;
+  m.parameter = r.read_string();
+  m.unit = r.read_string();
+  m.num_inputs = r.read<std::int32_t>();
+  m.path = r.read_vector<double>();
+  m.values = r.read_vector<double>();
+  return g;
+}
+
+void write_edge(BinaryWriter& w, const GraphEdge& e) {
+  w.write<std::int32_t>(e.from);
+  w.write<std::int32_t>(e.to);
+  w.write<std::uint8_t>(e.self_loop ? 1 : 0);
+  const EdgeSimilarity& s = e.similarity;
+  w.write<std::int32_t>(s.source_inputs);
+  w.write<std::int32_t>(s.target_inputs);
+  w.write<std::int32_t>(s.source_samples);
+  w.write<std::int32_t>(s.target_samples);
+  w.write<double>(s.max_distance);
+  w.write_vector(s.values);
+  w.write_vector(e.precomputed);
+}
+
+GraphEdge read_edge(BinaryReader& r) {
+  GraphEdge e;
+  e.from = r.read<std::int32_t>();
+  e.to = r.read<std::int32_t>();
+  e.self_loop = r.read<std::uint8_t>() != 0;
+  EdgeSimilarity& s = e.similarity;
+  s.source_inputs = r.read<std::int32_t>();
+  s.target_inputs = r.read<std::int32_t>();
+  s.source_samples = r.read<std::int32_t>();
+  s.target_samples = r.read<std::int32_t>();
+  s.max_distance = r.read<double>();
+  s.values = r.read_vector<float>();
+  e.precomputed = r.read_vector<PrecomputedTransition>();
+  return e;
+}
+
+}  // namespace
+
+void save_asset(const std::filesystem::path& path, const Asset& asset) {
+  const MotionGraph& g = asset.graph;
+  g.check();
+  asset.transitions.check();
+  BinaryWriter w;
+  std::size_t bytes = 4096;
+  for (const GraphSpace& s : g.spaces) bytes += 2 * s.normals.size() * sizeof(float) + 4096;
+  for (const GraphEdge& e : g.edges) bytes += e.similarity.values.size() * sizeof(float) + 1024;
+  w.reserve(bytes);
+  w.write_string(g.name);
+  w.write<double>(g.fps);
+  w.write<double>(g.similarity.velocity_weight);
+  w.write<double>(g.similarity.frame_time);
+  const TransitionOptions& t = asset.transitions;
+  w.write<double>(t.alpha);
+  w.write<double>(t.lambda);
+  w.write<std::int32_t>(t.depth);
+  w.write<double>(t.cost_unit);
+  w.write<double>(t.one_shot_target_t);
+  w.write<std::uint64_t>(g.spaces.size());
+  for (const GraphSpace& s : g.spaces) write_space(w, s);
+  w.write<std::uint64_t>(g.edges.size());
+  for (const GraphEdge& e : g.edges) write_edge(w, e);
+  w.save(path, kAssetMagic, kAssetVersion);
+}
+
+Asset load_asset(const std::filesystem::path& path) {
+  BinaryReader r = BinaryReader::open(path, kAssetMagic, {kAssetVersion});
+  Asset asset;
+  MotionGraph& g = asset.graph;
+  g.name = r.read_string();
+  g.fps = r.read<double>();
+  g.similarity.velocity_weight = r.read<double>();
+  g.similarity.frame_time = r.read<double>();
+  TransitionOptions& t = asset.transitions;
+  t.alpha = r.read<double>();
+  t.lambda = r.read<double>();
+  t.depth = r.read<std::int32_t>();
+  t.cost_unit = r.read<double>();
+  t.one_shot_target_t = r.read<double>();
+  const auto spaces = r.read<std::uint64_t>();
+  if (spaces > kMaxSpaces) {
+    throw InputError(fmt::format("{}: {} motion spaces announced", path.string(), spaces));
+  }
+  for (std::uint64_t k = 0; k < spaces; ++k) g.spaces.push_back(read_space(r));
+  const auto edges = r.read<std::uint64_t>();
+  if (edges > kMaxEdges) {
+    throw InputError(fmt::format("{}: {} edges announced", path.string(), edges));
+  }
+  for (std::uint64_t k = 0; k < edges; ++k) g.edges.push_back(read_edge(r));
+  r.expect_end();
+  try {
+    g.check();
+    t.check();
+  } catch (const Error& e) {
+    throw InputError(fmt::format("{}: {}", path.string(), e.what()));
+  }
+  return asset;
+}
+
+}  // namespace fourd

@@ -1,0 +1,38 @@
+#pragma once
+// The animatable asset: everything the runtime needs, in one versioned binary file
+// (pipeline/core/binary_format.h: magic "FOURDAS", version, byte order, checksum). Written by
+// the graph stage into <session>/asset/; the runtime loads it with nothing else from the
+// session.
+//
+// Payload (version 1), in order:
+//   string name; double fps; SimilarityDefinition; TransitionOptions (the defaults the graph
+//   was built for);
+//   uint64 #spaces, per space: name, cyclic, takes, character height, triangles, blend space
+//     (inputs, vertices, samples, plane stride, reference weights, frames, cells), normals
+//     (same layout as the frames), roots, seconds, parameter map (name, unit, inputs, path,
+//     values);
+//   uint64 #edges, per edge: from, to, self-loop, similarity sizes, d_max, values, precomputed
+//     transitions.
+#include <filesystem>
+
+#include "runtime/motion_graph.h"
+#include "runtime/transition.h"
+
+namespace fourd {
+
+inline constexpr std::uint32_t kAssetVersion = 1;
+
+struct Asset {
+  MotionGraph graph;
+  TransitionOptions transitions;  // the options the graph was built and evaluated with
+};
+
+// Checks the graph (MotionGraph::check) and writes the file atomically. Throws InputError for an
+// inconsistent graph, IoError when the file cannot be written.
+void save_asset(const std::filesystem::path& path, const Asset& asset);
+
+// Throws IoError when the file cannot be read and InputError naming the file for a wrong magic,
+// an unknown version, a truncated or corrupt file, or inconsistent content.
+Asset load_asset(const std::filesystem::path& path);
+
+}  // namespace fourd

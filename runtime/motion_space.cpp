@@ -1,0 +1,227 @@
+#include "runtime/motion_space.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <cstdint>
+
+#include "pipeline/core/binary_format.h"
+#include "pipeline/core/error.h"
+
+namespace fourd {
+
+namespace {
+
+constexpr FileMagic kMotionSpaceMagic("FOURDMS");
+constexpr std::uint32_t kMotionSpaceVersion = 1;
+
+// Weights projected onto the simplex exactly as runtime/blend.h does.
+std::array<double, 3> simplex_weights(std::span<const float> w, int n) {
+  assert(static_cast<int>(w.size()) >= n);
+  std::array<double, 3> p{};
+  double sum = 0;
+  for (int i = 0; i < n; ++i) sum += (p[i] = std::max(0.0, static_cast<double>(w[i])));
+  for (int i = 0; i < n; ++i) p[i] = sum > 0 ? p[i] / sum : 1.0 / n;
+  return p;
+}
+
+// Sample interval [i, i + 1] holding t and the fraction a along it (i = F - 2, a = 1 at t = 1).
+void sample_interval(int num_samples, double t, int* i, double* a) {
+  if (num_samples < 2) {
+    *i = 0;
+    *a = 0;
+    return;
+  }
+  const double pos = std::clamp(t, 0.0, 1.0) * (num_samples - 1);
+  *i = std::min(static_cast<int>(std::floor(pos)), num_samples - 2);
+  *a = pos - *i;
+}
+
+}  // namespace
+
+void MotionSpace::check() const {
+  blend.check();
+  const int n = blend.num_inputs, f = blend.num_frames;
+  if (static_cast<int>(takes.size()) != n) {
+    throw InputError(fmt::format("motion space '{}': {} take names for {} inputs", name,
+                                 takes.size(), n));
+  }
+  if (roots.size() != static_cast<std::size_t>(n) * f ||
+      seconds.size() != static_cast<std::size_t>(n) * f) {
+    throw InputError(fmt::format("motion space '{}': {} root poses and {} times for {} inputs x {} "
+                                 "samples",
+                                 name, roots.size(), seconds.size(), n, f));
+  }
+  for (int k = 0; k < n; ++k) {
+    for (int i = 0; i < f; ++i) {
+      const RootPose& r = root(k, i);
+      if (!std::isfinite(r.x) || !std::isfinite(r.y) || !std::isfinite(r.heading) ||
+          !std::isfinite(time(k, i))) {
+        throw InputError(fmt::format("motion space '{}': take {} sample {} is not finite", name,
+                                     takes[k], i));
+      }
+      if (i > 0 && !(time(k, i) > time(k, i - 1))) {
+        throw InputError(fmt::format("motion space '{}': take {}: time does not increase at sample "
+                                     "{}",
+                                     name, takes[k], i));
+      }
+    }
+  }
+  for (const Tri& t : triangles) {
+    if (t.minCoeff() < 0 || t.maxCoeff() >= blend.num_vertices) {
+      throw InputError(fmt::format("motion space '{}': triangle ({}, {}, {}) indexes past {} "
+                                   "vertices",
+                                   name, t[0], t[1], t[2], blend.num_vertices));
+    }
+  }
+  if (!(character_height > 0)) {
+    throw InputError(fmt::format("motion space '{}': character height {} is not positive", name,
+                                 character_height));
+  }
+  if (parameter_map.num_inputs != n) {
+    throw InputError(fmt::format("motion space '{}': parameter map for {} inputs, space has {}",
+                                 name, parameter_map.num_inputs, n));
+  }
+  parameter_map.check();
+}
+
+MotionSample make_motion_sample(const MotionSpace& space) {
+  MotionSample s;
+  s.shape = make_blended_frame(space.blend);
+  return s;
+}
+
+RootPose blended_root(const MotionSpace& space, double t, std::span<const float> w) {
+  const int n = space.num_inputs();
+  const std::array<double, 3> p = simplex_weights(w, n);
+  int i = 0;
+  double a = 0;
+  sample_interval(space.num_samples(), t, &i, &a);
+  const int j = std::min(i + 1, space.num_samples() - 1);
+  double x = 0, y = 0, h = 0;
+  for (int k = 0; k < n; ++k) {
+    const RootPose& r0 = space.root(k, i);
+    const RootPose& r1 = space.root(k, j);
+    x += p[k] * ((1 - a) * r0.x + a * r1.x);
+    y += p[k] * ((1 - a) * r0.y + a * r1.y);
+    h += p[k] * ((1 - a) * r0.heading + a * r1.heading);
+  }
+  return {static_cast<float>(x), static_cast<float>(y), static_cast<float>(h)};
+}
+
+double blended_seconds_per_t(const MotionSpace& space, double t, std::span<const float> w) {
+  const int n = space.num_inputs(), f = space.num_samples();
+  if (f < 2) return 0;
+  const std::array<double, 3> p = simplex_weights(w, n);
+  int i = 0;
+  double a = 0;
+  sample_interval(f, t, &i, &a);
+  double rate = 0;
+  for (int k = 0; k < n; ++k) rate += p[k] * (space.time(k, i + 1) - space.time(k, i));
+  return rate * (f - 1);
+}
+
+double blended_duration(const MotionSpace& space, std::span<const float> w) {
+  const int n = space.num_inputs(), f = space.num_samples();
+  const std::array<double, 3> p = simplex_weights(w, n);
+  double d = 0;
+  for (int k = 0; k < n; ++k) d += p[k] * (space.time(k, f - 1) - space.time(k, 0));
+  return d;
+}
+
+void evaluate_motion_space_weights(const MotionSpace& space, double t, std::span<const float> w,
+                                   MotionSample* out) {
+  const int n = space.num_inputs();
+  const std::array<double, 3> p = simplex_weights(w, n);
+  for (int k = 0; k < 3; ++k) out->weights[k] = k < n ? static_cast<float>(p[k]) : 0.f;
+  const std::span<const float> pw(out->weights.data(), n);
+  blend_hybrid(space.blend, t, pw, &out->shape);
+  out->root = blended_root(space, t, pw);
+  out->seconds_per_t = blended_seconds_per_t(space, t, pw);
+  out->duration = blended_duration(space, pw);
+}
+
+void evaluate_motion_space(const MotionSpace& space, double t, double p, MotionSample* out) {
+  std::array<float, 3> w{};
+  out->parameter = weights_for_parameter(space.parameter_map, p,
+                                         std::span<float>(w.data(), space.num_inputs()));
+  evaluate_motion_space_weights(space, t, std::span<const float>(w.data(), space.num_inputs()),
+                                out);
+}
+
+void save_motion_space(const std::filesystem::path& path, const MotionSpace& space) {
+  space.check();
+  BinaryWriter w;
+  const BlendSpace& b = space.blend;
+  w.reserve(b.frames.size() * sizeof(float) + 4096);
+  w.write_string(space.name);
+  w.write<std::uint8_t>(space.cyclic ? 1 : 0);
+  w.write<std::uint64_t>(space.takes.size());
+  for (const std::string& take : space.takes) w.write_string(take);
+  w.write<double>(space.character_height);
+  w.write_vector(space.triangles);
+  w.write<std::int32_t>(b.num_inputs);
+  w.write<std::int32_t>(b.num_vertices);
+  w.write<std::int32_t>(b.num_frames);
+  w.write<std::int32_t>(b.plane_stride);
+  w.write_vector(b.reference_weights);
+  w.write_span(std::span<const float>(b.frames.data(), b.frames.size()));
+  w.write_vector(b.cells);
+  w.write_vector(space.roots);
+  w.write_vector(space.seconds);
+  const ParameterMap& m = space.parameter_map;
+  w.write_string(m.parameter);
+  w.write_string(m.unit);
+  w.write<std::int32_t>(m.num_inputs);
+  w.write_vector(m.path);
+  w.write_vector(m.values);
+  w.save(path, kMotionSpaceMagic, kMotionSpaceVersion);
+}
+
+MotionSpace load_motion_space(const std::filesystem::path& path) {
+  BinaryReader r = BinaryReader::open(path, kMotionSpaceMagic, {kMotionSpaceVersion});
+  MotionSpace s;
+  s.name = r.read_string();
+  s.cyclic = r.read<std::uint8_t>() != 0;
+  const auto num_takes = r.read<std::uint64_t>();
+  if (num_takes > 3) {
+    throw InputError(fmt::format("{}: {} takes in one motion space (1 to 3 supported)",
+                                 path.string(), num_takes));
+  }
+  for (std::uint64_t k = 0; k < num_takes; ++k) s.takes.push_back(r.read_string());
+  s.character_height = r.read<double>();
+  s.triangles = r.read_vector<Tri>();
+  BlendSpace& b = s.blend;
+  b.num_inputs = r.read<std::int32_t>();
+  b.num_vertices = r.read<std::int32_t>();
+  b.num_frames = r.read<std::int32_t>();
+  b.plane_stride = r.read<std::int32_t>();
+  b.reference_weights = r.read_vector<double>();
+  const auto floats = r.read<std::uint64_t>();
+  if (floats > r.remaining() / sizeof(float)) {
+    throw InputError(fmt::format("{}: truncated blend frames ({} floats announced)",
+                                 path.string(), floats));
+  }
+  b.frames.resize(floats);
+  r.read_bytes(b.frames.data(), floats * sizeof(float));
+  b.cells = r.read_vector<std::array<int, 3>>();
+  s.roots = r.read_vector<RootPose>();
+  s.seconds = r.read_vector<float>();
+  ParameterMap& m = s.parameter_map;
+  m.parameter = r.read_string();
+  m.unit = r.read_string();
+  m.num_inputs = r.read<std::int32_t>();
+  m.path = r.read_vector<double>();
+  m.values = r.read_vector<double>();
+  r.expect_end();
+  try {
+    s.check();
+  } catch (const InputError& e) {
+    throw InputError(fmt::format("{}: {}", path.string(), e.what()));
+  }
+  return s;
+}
+
+}  // namespace fourd

@@ -1,0 +1,68 @@
+#pragma once
+// The motionspace stage: turns each registered motion class (timewarp/<class>.twarp) into a
+// parametric motion space the runtime evaluates at (t, p) (runtime/motion_space.h):
+//  - the inputs' root-free shapes, plus hybrid references chosen by recursive bisection until
+//    the hybrid blend is within epsilon of the non-linear blend (hybrid_build.h);
+//  - root curves and per-input timing from the timewarp stage;
+//  - the parameter map w = h^-1(p), sampled on the hybrid blend (parameters.h), and its
+//    accuracy: the parameter measured on the blended motion against the requested one.
+// Also the paper's Table 1 and Figure 4 on the pair of takes whose shapes differ most in
+// rotation (table1.h).
+//
+// Reads timewarp/ (timewarp_oracle/ in oracle mode); writes motionspace/ (motionspace_oracle/):
+//   <class>.mspace   the motion space (runtime/motion_space.h file format)
+//   <class>.json     references, errors, parameter range and accuracy
+//   table1.json      Table 1 numbers; figure4.png the blend at five weights with error maps
+//   summary.json     what validation reads first; options.yaml the options used
+// Every class is computed before the folder is replaced as a whole.
+#include "pipeline/core/config.h"
+#include "pipeline/core/session.h"
+#include "runtime/motion_space.h"
+#include "stages/common/stage.h"
+#include "stages/motionspace/hybrid_build.h"
+#include "stages/motionspace/parameters.h"
+#include "stages/timewarp/timewarp.h"
+
+namespace fourd::motionspace {
+
+struct MotionspaceOptions {
+  double epsilon = 0.005;     // hybrid blend within this of the non-linear blend [m]
+  int max_depth = 8;          // bisection levels per cell at most
+  int max_references = 32;    // hybrid references added per class at most
+  int parameter_samples = 16; // parameter samples per pair of consecutive inputs
+  int parameter_checks = 21;  // requests checked for the parameter accuracy
+  bool table1 = true;         // compute the paper's Table 1 and Figure 4
+  int table1_weights = 19;    // test weights of Table 1, evenly inside (0, 1)
+
+  template <class V>
+  void visit(V& v) {
+    v("epsilon", epsilon, "hybrid blend within this of the non-linear blend [m]");
+    v("max_depth", max_depth, "bisection levels per cell at most", Range{0, 30});
+    v("max_references", max_references, "hybrid references per class at most",
+      Range{0, 100000});
+    v("parameter_samples", parameter_samples, "parameter samples per pair of inputs",
+      Range{1, 100000});
+    v("parameter_checks", parameter_checks, "requests checked for parameter accuracy",
+      Range{1, 100000});
+    v("table1", table1, "compute Table 1 and Figure 4");
+    v("table1_weights", table1_weights, "test weights of Table 1", Range{1, 10000});
+  }
+  // Throws ConfigError naming the field (epsilon must be > 0).
+  void check() const;
+  HybridBuildOptions hybrid() const { return {epsilon, max_depth, max_references}; }
+};
+
+struct MotionSpaceReport {
+  HybridBuildReport hybrid;
+  ParameterMapReport parameters;
+  ParameterAccuracy accuracy;
+};
+
+// One class's motion space. Throws ConfigError for bad options or an unknown parameter,
+// InputError for takes that do not fit (naming the class and takes).
+MotionSpace build_motion_space(const timewarp::WarpedClass& warped,
+                               const MotionspaceOptions& options, MotionSpaceReport* report);
+
+void run_motionspace(const Session& session, const StageArgs& args);
+
+}  // namespace fourd::motionspace
