@@ -180,9 +180,9 @@ Picture picture_take(const ValidationContext& ctx, const std::vector<Camera>& ca
                                    image.cols, image.rows, mask.cols, mask.rows));
     }
     std::string label = fmt::format("{} {} frame {}", take.name, camera.name, frame);
-    cv::Mat left = panel(image, ctx.options.panel_width, cv::INTER_AREA, label);
-    cv::Mat right =
-        panel(image, ctx.options.panel_width, cv::INTER_AREA, "ground-truth silhouette");
+    int width = std::min(ctx.options.panel_width, image.cols);  // shrink large images only
+    cv::Mat left = panel(image, width, cv::INTER_AREA, label);
+    cv::Mat right = panel(image, width, cv::INTER_AREA, "ground-truth silhouette");
     cv::Mat small_mask;
     cv::resize(mask, small_mask, left.size(), 0, 0, cv::INTER_NEAREST);
     std::vector<std::vector<cv::Point>> contours;

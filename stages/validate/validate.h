@@ -31,7 +31,7 @@ struct ValidateOptions {
   int frames_per_take = 5;  // frames sampled evenly per take for per-frame checks
   int picture_takes = 4;    // takes pictured in the report (the first ones, by name)
   int picture_cameras = 2;  // cameras per picture, spread evenly around the rig
-  int panel_width = 480;    // width of one image panel in the pictures [px]
+  int panel_width = 480;    // largest width of one image panel in the pictures [px]
 
   template <class V>
   void visit(V& v) {

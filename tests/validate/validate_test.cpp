@@ -71,8 +71,7 @@ class ValidateTest : public ::testing::Test {
     ASSERT_NE(::mkdtemp(pattern.data()), nullptr);
     root_ = pattern;
     write_text(root_ / "session.yaml",
-               "name: tiny\nstages:\n  validate: {frames_per_take: 2, picture_takes: 1, "
-               "panel_width: 160}\n");
+               "name: tiny\nstages:\n  validate: {frames_per_take: 2, picture_takes: 1}\n");
   }
   void TearDown() override { fs::remove_all(root_); }
 
@@ -154,17 +153,18 @@ TEST_F(ValidateTest, SynthMetricsOnAConsistentSession) {
   EXPECT_GT(s["capture_mb"].get<double>(), 0.0);
   EXPECT_LT(s["capture_mb"].get<double>(), 1.0);
 
-  // One picture for the one take: 2 cameras (rows) x (capture, overlay) of 160 px panels.
+  // One picture for the one take: 2 cameras (rows) x (capture, overlay), panels at the
+  // images' own size (80 x 60: smaller than panel_width, so not enlarged).
   ASSERT_EQ(reports[0].pictures.size(), 1u);
   EXPECT_EQ(reports[0].pictures[0].file, "synth_walk.png");
   cv::Mat picture = read_image(root_ / "reports" / "synth_walk.png");
-  EXPECT_EQ(picture.cols, 320);
-  EXPECT_EQ(picture.rows, 240);
+  EXPECT_EQ(picture.cols, 160);
+  EXPECT_EQ(picture.rows, 120);
   // The overlay half has the red outline: pure red pixels exist on the right, not on the left.
   cv::Mat red;
   cv::inRange(picture, cv::Scalar(0, 0, 250), cv::Scalar(5, 5, 255), red);
-  EXPECT_EQ(cv::countNonZero(red.colRange(0, 160)), 0);
-  EXPECT_GT(cv::countNonZero(red.colRange(160, 320)), 20);
+  EXPECT_EQ(cv::countNonZero(red.colRange(0, 80)), 0);
+  EXPECT_GT(cv::countNonZero(red.colRange(80, 160)), 20);
 
   std::string md = read_file(root_ / "reports" / "report.md");
   EXPECT_NE(md.find("![synth, take walk"), std::string::npos);

@@ -1,0 +1,230 @@
+#include "stages/graph/graph.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <ctime>
+#include <fstream>
+
+#include "pipeline/core/error.h"
+#include "pipeline/core/files.h"
+#include "pipeline/core/log.h"
+#include "stages/graph/similarity.h"
+
+namespace fourd::graph {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// Process CPU time [s]: all threads, so TBB-parallel work counts fully.
+double cpu_seconds() { return static_cast<double>(std::clock()) / CLOCKS_PER_SEC; }
+
+bool has_motion_space_magic(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  char magic[8] = {};
+  in.read(magic, sizeof magic);
+  static constexpr char kExpected[8] = {'F', 'O', 'U', 'R', 'D', 'M', 'S', '\0'};
+  return in.gcount() == sizeof magic && std::equal(magic, magic + 8, kExpected);
+}
+
+}  // namespace
+
+MotionGraph build_motion_graph(const std::string& name, double fps, std::vector<MotionSpace> spaces,
+                               std::span<const TransitionConfig> transitions,
+                               const GraphOptions& options, GraphBuildReport* report) {
+  options.check();
+  GraphBuildReport local;
+  GraphBuildReport& r = report ? *report : local;
+  r = {};
+  MotionGraph g;
+  g.name = name;
+  g.fps = fps;
+  g.similarity.velocity_weight = options.velocity_weight;
+  g.similarity.frame_time = 1.0 / fps;
+
+  double start = cpu_seconds();
+  for (MotionSpace& m : spaces) {
+    m.check();
+    GraphSpace s;
+    s.normals = reference_normals(m);
+    s.motion = std::move(m);
+    g.spaces.push_back(std::move(s));
+  }
+  r.normals_cpu_seconds = cpu_seconds() - start;
+
+  auto add_edge = [&](int from, int to) {
+    if (g.find_edge(from, to) >= 0) return;
+    GraphEdge e;
+    e.from = from;
+    e.to = to;
+    e.self_loop = from == to;
+    EdgeBuildReport er;
+    er.from = g.spaces[from].name();
+    er.to = g.spaces[to].name();
+    er.self_loop = e.self_loop;
+    double t0 = cpu_seconds();
+    e.similarity = build_edge_similarity(g.spaces[from].motion, g.spaces[to].motion, g.similarity);
+    er.similarity_cpu_seconds = cpu_seconds() - t0;
+    if (!e.self_loop) {  // a loop's best "transition" is staying put: nothing to precompute
+      t0 = cpu_seconds();
+      e.precomputed =
+          precompute_transitions(g.spaces[from], g.spaces[to], g.similarity, options.precomputed);
+      er.precompute_cpu_seconds = cpu_seconds() - t0;
+    }
+    er.max_distance = e.similarity.max_distance;
+    er.precomputed = static_cast<int>(e.precomputed.size());
+    r.similarity_cpu_seconds += er.similarity_cpu_seconds;
+    r.precompute_cpu_seconds += er.precompute_cpu_seconds;
+    r.edges.push_back(er);
+    g.edges.push_back(std::move(e));
+  };
+  for (const TransitionConfig& t : transitions) {
+    const int from = g.find_space(t.from), to = g.find_space(t.to);
+    if (from < 0 || to < 0) {
+      throw InputError(fmt::format("transition {} -> {}: no motion space named '{}'", t.from, t.to,
+                                   from < 0 ? t.from : t.to));
+    }
+    add_edge(from, to);
+  }
+  if (options.self_loops) {
+    for (int s = 0; s < static_cast<int>(g.spaces.size()); ++s) {
+      if (g.spaces[s].cyclic()) add_edge(s, s);
+    }
+  }
+  g.check();
+  return g;
+}
+
+fs::path find_motion_space_file(const fs::path& dir, const std::string& motion) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) {
+    throw InputError(fmt::format("motion spaces: folder {} does not exist (run the motionspace "
+                                 "stage first)",
+                                 dir.string()));
+  }
+  std::vector<fs::path> candidates;
+  for (const auto& entry : fs::directory_iterator(dir)) {
+    if (entry.is_regular_file() && entry.path().stem() == motion &&
+        has_motion_space_magic(entry.path())) {
+      candidates.push_back(entry.path());
+    }
+  }
+  if (candidates.empty()) {
+    throw InputError(fmt::format("motion class '{}': no motion space file {}/{}.* (run the "
+                                 "motionspace stage for it)",
+                                 motion, dir.string(), motion));
+  }
+  std::sort(candidates.begin(), candidates.end());
+  return candidates.front();
+}
+
+fs::path motion_space_dir(const Session& session, const StageArgs& args) {
+  if (!args.oracle) return session.dir("motionspace");
+  // The motionspace stage run on oracle inputs writes motionspace_oracle/; prepared oracle
+  // inputs (oracle/motionspace/) are the fallback.
+  const fs::path derived = session.dir("motionspace_oracle");
+  std::error_code ec;
+  return fs::is_directory(derived, ec) ? derived : stage_input_dir(session, args, "motionspace");
+}
+
+fs::path asset_path(const Session& session, bool oracle) {
+  return session.dir(oracle ? "asset_oracle" : "asset") / kAssetFileName;
+}
+
+nlohmann::json graph_summary(const MotionGraph& graph, const GraphBuildReport& report) {
+  nlohmann::json j;
+  j["name"] = graph.name;
+  j["fps"] = graph.fps;
+  j["vertices"] = graph.num_vertices();
+  j["velocity_weight"] = graph.similarity.velocity_weight;
+  j["frame_time_s"] = graph.similarity.frame_time;
+  j["normals_cpu_s"] = report.normals_cpu_seconds;
+  j["similarity_cpu_s"] = report.similarity_cpu_seconds;
+  j["precompute_cpu_s"] = report.precompute_cpu_seconds;
+  for (const GraphSpace& s : graph.spaces) {
+    const ParameterMap& m = s.motion.parameter_map;
+    j["nodes"].push_back({{"name", s.name()},
+                          {"cyclic", s.cyclic()},
+                          {"takes", s.motion.takes},
+                          {"samples", s.num_samples()},
+                          {"references", s.motion.blend.num_references()},
+                          {"parameter", m.parameter},
+                          {"unit", m.unit},
+                          {"parameter_min", m.min_value()},
+                          {"parameter_max", m.max_value()}});
+  }
+  for (std::size_t k = 0; k < graph.edges.size(); ++k) {
+    const GraphEdge& e = graph.edges[k];
+    nlohmann::json je = {{"from", graph.spaces[e.from].name()},
+                         {"to", graph.spaces[e.to].name()},
+                         {"self_loop", e.self_loop},
+                         {"max_distance_m2", e.similarity.max_distance},
+                         {"matrix", {e.similarity.source_samples, e.similarity.target_samples,
+                                     e.similarity.source_inputs, e.similarity.target_inputs}}};
+    if (k < report.edges.size()) {
+      je["similarity_cpu_s"] = report.edges[k].similarity_cpu_seconds;
+      je["precompute_cpu_s"] = report.edges[k].precompute_cpu_seconds;
+    }
+    for (const PrecomputedTransition& p : e.precomputed) {
+      je["precomputed"].push_back({{"source_t", p.source_t},
+                                   {"source_p", p.source_p},
+                                   {"target_t", p.target_t},
+                                   {"target_p", p.target_p},
+                                   {"distance_m2", p.distance}});
+    }
+    j["edges"].push_back(je);
+  }
+  return j;
+}
+
+void run_graph(const Session& session, const StageArgs& args) {
+  GraphOptions options;
+  session.stage_options("graph", options);
+  options.check();
+  const SessionConfig& config = session.config();
+  const fs::path in_dir = motion_space_dir(session, args);
+  std::vector<MotionSpace> spaces;
+  for (const MotionClassConfig& motion : config.motions) {
+    const fs::path file = find_motion_space_file(in_dir, motion.name);
+    log::info("reading motion space '{}' from {}", motion.name, file.string());
+    spaces.push_back(load_motion_space(file));
+    if (spaces.back().cyclic != motion.cyclic) {
+      throw InputError(fmt::format("{}: motion space is {} but session.yaml declares '{}' {}",
+                                   file.string(), spaces.back().cyclic ? "cyclic" : "one-shot",
+                                   motion.name, motion.cyclic ? "cyclic" : "one-shot"));
+    }
+  }
+  log::Timer timer;
+  GraphBuildReport report;
+  Asset asset;
+  asset.graph =
+      build_motion_graph(config.name, config.fps, std::move(spaces), config.transitions, options,
+                         &report);
+  asset.transitions = options.transitions;
+  for (const EdgeBuildReport& e : report.edges) {
+    log::info("edge {} -> {}{}: d_max {:.4g} m^2, similarity {:.2f} s CPU, {} precomputed "
+              "transitions in {:.2f} s CPU",
+              e.from, e.to, e.self_loop ? " (loop)" : "", e.max_distance,
+              e.similarity_cpu_seconds, e.precomputed, e.precompute_cpu_seconds);
+  }
+  log::info("graph: {} spaces, {} edges in {:.1f} s", asset.graph.spaces.size(),
+            asset.graph.edges.size(), timer.seconds());
+
+  const fs::path graph_dir = stage_output_dir(session, args, "graph");
+  ensure_directory(graph_dir);
+  const fs::path asset_file = asset_path(session, args.oracle);
+  ensure_directory(asset_file.parent_path());
+  save_asset(asset_file, asset);
+  nlohmann::json summary = graph_summary(asset.graph, report);
+  summary["asset"] = fs::relative(asset_file, session.root()).generic_string();
+  summary["asset_bytes"] = fs::file_size(asset_file);
+  write_file_atomic(graph_dir / "graph.json", summary.dump(1));
+  YAML::Emitter yaml;
+  yaml << to_yaml(options);
+  write_file_atomic(graph_dir / "options.yaml", std::string(yaml.c_str()) + "\n");
+  log::info("wrote {} ({:.1f} MB) and {}", asset_file.string(),
+            fs::file_size(asset_file) / 1e6, (graph_dir / "graph.json").string());
+}
+
+}  // namespace fourd::graph

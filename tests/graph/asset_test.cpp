@@ -1,0 +1,93 @@
+// The runtime asset file (runtime/asset.h): round trip and refusal of bad files.
+#include "runtime/asset.h"
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <fstream>
+
+#include "pipeline/core/error.h"
+#include "pipeline/core/files.h"
+#include "tests/graph/test_graph.h"
+
+namespace fourd {
+namespace {
+
+class AssetTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir_ = fs::temp_directory_path() / fmt::format("fourd_asset_{}_{}", ::getpid(), info->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    file_ = dir_ / "graph.fourd";
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  fs::path dir_, file_;
+};
+
+TEST_F(AssetTest, RoundTripKeepsEverything) {
+  Asset a;
+  a.graph = test::make_test_graph(true);
+  a.transitions.depth = 9;
+  save_asset(file_, a);
+  const Asset b = load_asset(file_);
+  EXPECT_EQ(b.transitions.depth, 9);
+  EXPECT_EQ(b.graph.name, a.graph.name);
+  EXPECT_DOUBLE_EQ(b.graph.fps, a.graph.fps);
+  ASSERT_EQ(b.graph.spaces.size(), a.graph.spaces.size());
+  for (std::size_t k = 0; k < a.graph.spaces.size(); ++k) {
+    const GraphSpace& x = a.graph.spaces[k];
+    const GraphSpace& y = b.graph.spaces[k];
+    EXPECT_EQ(x.name(), y.name());
+    EXPECT_EQ(x.cyclic(), y.cyclic());
+    EXPECT_TRUE(std::equal(x.motion.blend.frames.begin(), x.motion.blend.frames.end(),
+                           y.motion.blend.frames.begin(), y.motion.blend.frames.end()));
+    EXPECT_TRUE(std::equal(x.normals.begin(), x.normals.end(), y.normals.begin(), y.normals.end()));
+    EXPECT_EQ(x.motion.blend.cells, y.motion.blend.cells);
+    EXPECT_EQ(x.motion.parameter_map.values, y.motion.parameter_map.values);
+    EXPECT_EQ(x.motion.seconds, y.motion.seconds);
+  }
+  ASSERT_EQ(b.graph.edges.size(), a.graph.edges.size());
+  for (std::size_t k = 0; k < a.graph.edges.size(); ++k) {
+    EXPECT_EQ(a.graph.edges[k].similarity.values, b.graph.edges[k].similarity.values);
+    EXPECT_EQ(a.graph.edges[k].precomputed.size(), b.graph.edges[k].precomputed.size());
+    EXPECT_EQ(a.graph.edges[k].self_loop, b.graph.edges[k].self_loop);
+  }
+}
+
+TEST_F(AssetTest, RefusesUnknownVersion) {
+  Asset a;
+  a.graph = test::make_test_graph();
+  save_asset(file_, a);
+  std::string bytes = read_file(file_);
+  const std::uint32_t future = kAssetVersion + 1;
+  std::memcpy(bytes.data() + 8, &future, sizeof future);
+  write_file_atomic(file_, bytes);
+  try {
+    load_asset(file_);
+    FAIL() << "loaded an asset of an unknown version";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("version"), std::string::npos) << e.what();
+  }
+}
+
+TEST_F(AssetTest, RefusesTruncatedAndCorruptFiles) {
+  Asset a;
+  a.graph = test::make_test_graph();
+  save_asset(file_, a);
+  const std::string bytes = read_file(file_);
+  write_file_atomic(file_, bytes.substr(0, bytes.size() / 2));
+  EXPECT_THROW(load_asset(file_), InputError);
+  std::string flipped = bytes;
+  flipped[flipped.size() / 2] ^= 0x55;
+  write_file_atomic(file_, flipped);
+  EXPECT_THROW(load_asset(file_), InputError);
+  write_file_atomic(file_, "not an asset");
+  EXPECT_THROW(load_asset(file_), InputError);
+  EXPECT_THROW(load_asset(dir_ / "missing.fourd"), IoError);
+}
+
+}  // namespace
+}  // namespace fourd
