@@ -220,6 +220,24 @@ void run_graph(const Session& session, const StageArgs& args) {
   summary["asset"] = fs::relative(asset_file, session.root()).generic_string();
   summary["asset_bytes"] = fs::file_size(asset_file);
   write_file_atomic(graph_dir / "graph.json", summary.dump(1));
+  if (options.table2.transitions > 0) {
+    log::Timer t2;
+    const Table2 table = evaluate_table2(asset.graph, options.transitions, options.table2,
+                                         report.similarity_cpu_seconds,
+                                         report.precompute_cpu_seconds);
+    for (const Table2Row& r : table.rows) {
+      log::info("Table 2, {:<18} E_S {:8.2f} (played {:8.2f})  lambda E_L {:7.2f}  latency "
+                "{:.3f} s  online {:.2e} s  offline {:.2f} s  ({}/{} answered)",
+                r.method, r.similarity_cost, r.played_similarity_cost, r.latency_cost,
+                r.latency_s, r.online_cpu_s, r.offline_cpu_s, r.answered, table.requests);
+    }
+    write_file_atomic(graph_dir / "table2.json", table2_json(table).dump(1));
+    log::info("Table 2: {} requests over {} edge(s) in {:.1f} s", table.requests,
+              table.edges.size(), t2.seconds());
+  } else {
+    std::error_code ec;
+    fs::remove(graph_dir / "table2.json", ec);  // not from an earlier run with other options
+  }
   YAML::Emitter yaml;
   yaml << to_yaml(options);
   write_file_atomic(graph_dir / "options.yaml", std::string(yaml.c_str()) + "\n");

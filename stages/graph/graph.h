@@ -9,6 +9,7 @@
 // transitions of the baseline (precomputed.h); per node: the normals of every reference frame,
 // so the runtime blends normals instead of recomputing them.
 //
+// Also evaluates the paper's Table 2 on the built graph (table2.h) into graph/table2.json.
 // Writes graph/graph.json (nodes, edges, sizes, d_max, precomputed transitions, offline CPU
 // times), graph/options.yaml, and asset/motion_graph.fourd (runtime/asset.h). In oracle mode it
 // reads motionspace_oracle/ (the motionspace stage run on oracle inputs) and writes
@@ -24,6 +25,7 @@
 #include "runtime/asset.h"
 #include "stages/common/stage.h"
 #include "stages/graph/precomputed.h"
+#include "stages/graph/table2.h"
 
 namespace fourd::graph {
 
@@ -34,6 +36,7 @@ struct GraphOptions {
   bool self_loops = true;        // add a loop edge to every cyclic space
   PrecomputeOptions precomputed;
   TransitionOptions transitions;  // defaults stored in the asset for the runtime
+  Table2Options table2;           // the paper's Table 2 on this graph (graph/table2.json)
 
   template <class V>
   void visit(V& v) {
@@ -42,6 +45,7 @@ struct GraphOptions {
     v("self_loops", self_loops, "add a loop edge to every cyclic motion space");
     v("precomputed", precomputed, "baseline: n best transitions per edge");
     v("transitions", transitions, "online transition search defaults");
+    v("table2", table2, "Table 2: random transitions, online vs precomputed");
   }
   void check() const { transitions.check(); }
 };

@@ -87,6 +87,13 @@ const std::vector<ValidatorEntry>& validators();
 // The synth validator: counts, capture size, and whether the ground-truth meshes project
 // inside the ground-truth silhouettes (pictures: capture next to the silhouette contour).
 StageReport validate_synth(const ValidationContext& context);
+// Timewarp: phase of every frame against the ground-truth phase (timewarp.phase_error_frames).
+StageReport validate_timewarp(const ValidationContext& context);
+// Motion spaces: Table 1 and parameter accuracy from motionspace/summary.json (blend.*).
+StageReport validate_blend(const ValidationContext& context);
+// Motion graph: Table 2 from graph/table2.json (transitions.*).
+StageReport validate_transitions(const ValidationContext& context);
+
 
 // Runs every validator and writes reports/metrics.json, reports/report.md and the pictures,
 // each atomically. A validator that throws does not stop the others: its stage is reported as

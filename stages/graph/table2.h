@@ -1,0 +1,71 @@
+#pragma once
+// The paper's Table 2 on our graph: random transition requests between motion spaces, each
+// answered by the online trellis search (several depths) and by the precomputed baseline
+// (n best transitions per edge), with the columns of the paper: E_S(P_opt), lambda E_L(P_opt),
+// latency [s], online CPU per transition [s] and offline CPU [s].
+//
+// E_S is reported two ways: as each method scores it (the online search uses the lower bound
+// of Eq. 3, the baseline the distance it stored), and measured the same way for both on the
+// frames actually played at the switch (cost_unit x d between the hybrid blends), so that the
+// methods are compared on what the viewer sees.
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "pipeline/core/config.h"
+#include "runtime/motion_graph.h"
+#include "runtime/transition.h"
+
+namespace fourd::graph {
+
+struct Table2Options {
+  int transitions = 50;  // random requests (0: no Table 2)
+  std::vector<std::string> spaces;  // edges between these spaces only (empty: every edge)
+  std::vector<int> depths = {3, 5, 8, 10, 12, 16};  // online trellis depths evaluated
+  std::vector<int> precomputed = {1, 5, 10};        // n of the baseline
+  std::uint64_t seed = 2012;                        // of the random requests
+  int timing_repeats = 20;                          // searches per request timed
+
+  template <class V>
+  void visit(V& v) {
+    v("transitions", transitions, "random transition requests (0: skip Table 2)",
+      Range{0, 100000});
+    v("spaces", spaces, "evaluate edges between these motion spaces (empty: all edges)");
+    v("depths", depths, "online trellis depths evaluated", Range{0, kMaxTrellisDepth});
+    v("precomputed", precomputed, "n of the precomputed baseline", Range{1, 100000});
+    v("seed", seed, "seed of the random requests");
+    v("timing_repeats", timing_repeats, "searches per request timed", Range{1, 100000});
+  }
+};
+
+struct Table2Row {
+  std::string method;  // "online, depth 12", "10 precomputed"
+  int depth = 0;       // online only
+  int n = 0;           // precomputed only
+  int answered = 0;    // requests the method found a path for
+  double similarity_cost = 0;         // mean E_S as the method scores it
+  double played_similarity_cost = 0;  // mean E_S measured on the played frames
+  double latency_cost = 0;            // mean lambda E_L
+  double latency_s = 0;               // mean latency [s]
+  double online_cpu_s = 0;            // mean CPU per transition search [s]
+  double offline_cpu_s = 0;           // precomputation the method needs [s]
+};
+
+struct Table2 {
+  int requests = 0;
+  std::vector<std::string> edges;  // "from -> to" evaluated
+  std::vector<Table2Row> rows;     // online depths first, then the baseline
+};
+
+// `similarity_cpu_s`: offline CPU of the similarity matrices (what the online method needs);
+// `precompute_cpu_s`: of the baseline's n best transitions (it needs the matrices' features too,
+// so its offline time is the sum). Throws ConfigError for a space name the graph lacks or no
+// edge between the listed spaces.
+Table2 evaluate_table2(const MotionGraph& graph, const TransitionOptions& transitions,
+                       const Table2Options& options, double similarity_cpu_s,
+                       double precompute_cpu_s);
+
+nlohmann::json table2_json(const Table2& table);
+
+}  // namespace fourd::graph
