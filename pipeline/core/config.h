@@ -215,11 +215,27 @@ class Describer {
       Describer d(out_, indent_ + "  ");
       field.visit(d);
     } else if constexpr (is_vector<T>::value) {
-      out_ += fmt::format("{}{} (list): {}\n", indent_, key, help);
+      if constexpr (is_options<typename T::value_type>::value) {
+        out_ += fmt::format("{}{} (list): {}\n", indent_, key, help);
+      } else {
+        std::string items;
+        for (const auto& item : field) items += (items.empty() ? "" : ", ") + scalar(item);
+        out_ += fmt::format("{}{} = [{}]: {}\n", indent_, key, items, help);
+      }
     } else {
-      YAML::Emitter e;
-      e << YAML::Flow << field;
-      out_ += fmt::format("{}{} = {}: {}\n", indent_, key, e.c_str(), help);
+      out_ += fmt::format("{}{} = {}: {}\n", indent_, key, scalar(field), help);
+    }
+  }
+
+  // Shortest round-trip text: 0.1, not 0.10000000000000001.
+  template <class T>
+  static std::string scalar(const T& value) {
+    if constexpr (std::is_same_v<T, bool>) {
+      return value ? "true" : "false";
+    } else if constexpr (std::is_same_v<T, std::string>) {
+      return value.empty() ? "\"\"" : value;
+    } else {
+      return fmt::format("{}", value);
     }
   }
 

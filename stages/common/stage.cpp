@@ -69,6 +69,11 @@ int run_stage_main(int argc, char** argv, const StageInfo& info,
                  "previous stage's, and write to <stage>_oracle/");
   }
   if (add_options) add_options(app);
+  if (!info.options_help.empty()) {
+    app.footer(fmt::format("\nOptions in session.yaml, section stages.{} (name = default: "
+                           "meaning):\n{}",
+                           info.name, info.options_help));
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -37,6 +37,9 @@ struct StageInfo {
   const char* description;  // one paragraph for --help
   bool takes_frame_range = false;
   bool supports_oracle = false;
+  // The stage's section of session.yaml (stages.<name>) with defaults and help, shown at the
+  // end of --help: describe_options(TheOptions{}).
+  std::string options_help;
 };
 
 // Folder a stage reads the outputs of `input_stage` from: <session>/<input_stage>; in oracle

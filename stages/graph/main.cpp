@@ -11,6 +11,7 @@ int main(int argc, char** argv) {
                         "n best transitions per edge for the baseline, and writes "
                         "asset/motion_graph.fourd (everything the runtime needs) and "
                         "graph/graph.json.",
-                        /*takes_frame_range=*/false, /*supports_oracle=*/true};
+                        /*takes_frame_range=*/false, /*supports_oracle=*/true,
+                        fourd::describe_options(fourd::graph::GraphOptions{})};
   return fourd::run_stage_main(argc, argv, info, nullptr, fourd::graph::run_graph);
 }

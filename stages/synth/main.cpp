@@ -7,6 +7,7 @@ int main(int argc, char** argv) {
   fourd::StageInfo info{"synth",
                         "Synthetic studio: renders a procedural performer with known geometry, "
                         "motion parameters and calibration from a virtual camera rig; writes "
-                        "capture/, calibration/ and ground_truth/ (deterministic from the seed)."};
+                        "capture/, calibration/ and ground_truth/ (deterministic from the seed).",
+                        false, false, fourd::describe_options(fourd::synth::SynthOptions{})};
   return fourd::run_stage_main(argc, argv, info, nullptr, fourd::synth::run_synth);
 }

@@ -10,6 +10,7 @@ int main(int argc, char** argv) {
                         "closed cycle of cyclic takes, registers the takes to the first one by "
                         "dynamic time warping and writes timewarp/<class>.twarp (resampled shapes, "
                         "root curves, timing) and timewarp/<class>.json.",
-                        /*takes_frame_range=*/false, /*supports_oracle=*/true};
+                        /*takes_frame_range=*/false, /*supports_oracle=*/true,
+                        fourd::describe_options(fourd::timewarp::TimewarpOptions{})};
   return fourd::run_stage_main(argc, argv, info, nullptr, fourd::timewarp::run_timewarp);
 }

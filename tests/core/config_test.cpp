@@ -95,5 +95,19 @@ TEST(Config, WriteThenReadRoundTrips) {
   EXPECT_EQ(back.list[0].count, 2);
 }
 
+TEST(Config, DescribeListsEveryFieldWithItsDefault) {
+  Outer o;
+  o.values = {0.1, 2.5};
+  o.inner.radius = 0.1;
+  const std::string text = describe_options(o);
+  EXPECT_NE(text.find("name = x: name\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("flag = false: flag\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("inner: inner options\n    count = 8: cameras\n    radius = 0.1: radius [m]\n"),
+            std::string::npos)
+      << text;
+  EXPECT_NE(text.find("list (list): list of inner\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("values = [0.1, 2.5]: numbers\n"), std::string::npos) << text;
+}
+
 }  // namespace
 }  // namespace fourd

@@ -34,7 +34,7 @@ def need(key, lo=None, hi=None):
     assert hi is None or v <= hi, f"{key} = {v} > {hi}"
 need("synth.takes", 4, 4)
 need("synth.cameras", 4, 4)
-need("synth.frames", 64, 64)
+need("synth.frames", 96, 96)
 need("synth.silhouette_vertex_consistency", 0.99, 1.0)
 print("metrics ok")
 PY
