@@ -102,8 +102,9 @@ int main(int argc, char** argv) {
       ->excludes(only);
   run->add_flag("--force", request.force, "rerun the selected stages even when up to date");
   run->add_option("--oracle", oracle,
-                  "feed STAGE ground-truth inputs instead of the previous stage's output\n"
-                  "(validation; repeatable); switching it on or off reruns the stage")
+                  "also run STAGE on inputs derived from ground truth, writing STAGE_oracle/\n"
+                  "beside its pipeline output (validation; repeatable; session.yaml 'oracle:'\n"
+                  "lists stages that always get this run)")
       ->allow_extra_args(false)  // one stage per --oracle, so the session positional is not eaten
       ->type_name("STAGE");
   run->add_option("--threads", request.threads, "worker threads per stage (0 = all cores)")
