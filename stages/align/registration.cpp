@@ -6,8 +6,6 @@
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
 #include <algorithm>
-#include <cstdio>
-#include <cstdlib>
 #include <cmath>
 #include <fmt/format.h>
 #include <limits>
@@ -603,11 +601,6 @@ DeformationState register_to_surface(const TemplateModel& model, const Deformati
       const std::vector<Correspondence> matches = find_correspondences(
           positions, vertex_normals(positions, model.rest.triangles), target, max_distance,
           std::max(options.robust_scale, max_distance / 3), options);
-      if (std::getenv("H8_DEBUG")) {
-        double sum = 0; int cnt = 0;
-        for (std::size_t i = 0; i < matches.size(); ++i) if (matches[i].weight > 0) { sum += (positions[i].cast<double>() - matches[i].point).squaredNorm(); ++cnt; }
-        fprintf(stderr, "level %d it %d: matched %d/%zu rms %.2f mm\n", level, it, cnt, matches.size(), 1e3 * std::sqrt(sum / std::max(cnt, 1)));
-      }
       if (!graph_gauss_newton_step(model, matches, options.stiffness[level], options, system,
                                    solver, !analysed, &state)) {
         throw SolverError("registration: the deformation graph system could not be solved");

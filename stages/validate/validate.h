@@ -94,6 +94,9 @@ StageReport validate_blend(const ValidationContext& context);
 // Motion graph: Table 2 from graph/table2.json (transitions.*).
 StageReport validate_transitions(const ValidationContext& context);
 
+// align/ and align_oracle/ against ground_truth/meshes/: correspondence, surface, flipped
+// triangles, seconds per frame, plot vs the sequential baseline (validate_align.cpp).
+StageReport validate_align(const ValidationContext& context);
 
 // Runs every validator and writes reports/metrics.json, reports/report.md and the pictures,
 // each atomically. A validator that throws does not stop the others: its stage is reported as

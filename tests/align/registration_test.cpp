@@ -3,7 +3,6 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
-#include <cstdlib>
 #include <iostream>
 
 #include "stages/align/mesh_tools.h"
@@ -76,36 +75,10 @@ TEST(Registration, SmoothDeformationOfACapsuleIsRecoveredFromFreshConnectivity) 
 
   RegistrationOptions options;
   const SurfaceQuery target(target_mesh);
-  if (std::getenv("H8_VARIANTS")) {
-    for (int variant = 0; variant < 6; ++variant) {
-      RegistrationOptions o;
-      if (variant == 1) o.refine_iterations = 0;
-      if (variant == 2) o.rigid_iterations = 0;
-      if (variant == 3) o.stiffness = {4, 2, 1};
-      if (variant == 4) o.point_to_point = 0.5;
-      if (variant == 5) o.graph_nodes = 100;
-      const TemplateModel m = build_template_model(templ, o);
-      const DeformationState f = register_to_surface(m, rest_state(m), target, o);
-      std::vector<Vec3f> graph_only = deform_with_graph(m, f);
-      double along = 0;
-      for (std::size_t i = 0; i < expected.size(); ++i) along += std::pow(f.positions[i].z() - expected[i].z(), 2);
-      std::cout << "variant " << variant << ": rms " << rms_error(f.positions, expected) * 1e3
-                << " graph-only rms " << rms_error(graph_only, expected) * 1e3 << " z-rms " << std::sqrt(along / expected.size()) * 1e3 << "\n";
-    }
-  }
   const TemplateModel model = build_template_model(templ, options);
   const DeformationState fit = register_to_surface(model, rest_state(model), target, options);
   const FitStats stats = evaluate_fit(model, fit.positions, target, options);
   const double rms = rms_error(fit.positions, expected);
-  if (std::getenv("H8_VARIANTS")) {
-    for (int b = -7; b < 7; ++b) {
-      double dz = 0, dx = 0; int c = 0;
-      for (std::size_t i = 0; i < expected.size(); ++i) {
-        if (templ.positions[i].z() >= b * 0.1 && templ.positions[i].z() < (b + 1) * 0.1) { dz += fit.positions[i].z() - expected[i].z(); dx += (fit.positions[i] - expected[i]).norm(); ++c; }
-      }
-      std::cout << "z " << b * 0.1 << ": n " << c << " mean dz " << 1e3 * dz / std::max(c, 1) << " mean |d| " << 1e3 * dx / std::max(c, 1) << "\n";
-    }
-  }
   std::cout << "capsule bend: correspondence rms " << rms * 1e3 << " mm, max "
             << max_error(fit.positions, expected) * 1e3 << " mm, surface rms "
             << stats.surface_rms * 1e3 << " mm\n";

@@ -1,0 +1,43 @@
+#pragma once
+// Exact closest-point and line-crossing queries on one triangle mesh (CGAL AABB tree), for the
+// validators and the oracle inputs. Built once, then queried from any number of threads.
+#include <memory>
+#include <vector>
+
+#include "pipeline/core/mesh.h"
+
+namespace fourd::validate {
+
+struct ClosestPoint {
+  Vec3f point = Vec3f::Zero();
+  int triangle = -1;                      // index into the mesh's triangles
+  Vec3f barycentric = Vec3f(1, 0, 0);     // of `point` in that triangle
+  double distance = 0;                    // [m]
+};
+
+class MeshQuery {
+ public:
+  // Throws InputError when the mesh has no non-degenerate triangle.
+  explicit MeshQuery(const Mesh& mesh);
+  ~MeshQuery();
+  MeshQuery(const MeshQuery&) = delete;
+  MeshQuery& operator=(const MeshQuery&) = delete;
+
+  ClosestPoint closest(const Vec3f& p) const;
+  double distance(const Vec3f& p) const;
+  // x coordinates, sorted, where the line through (0, y, z) along x crosses the surface.
+  std::vector<double> crossings_along_x(double y, double z) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// The point with barycentric coordinates `b` in triangle `t` of `mesh`.
+inline Vec3f barycentric_point(const Mesh& mesh, int t, const Vec3f& b) {
+  const Tri& tri = mesh.triangles[t];
+  return b.x() * mesh.positions[tri[0]] + b.y() * mesh.positions[tri[1]] +
+         b.z() * mesh.positions[tri[2]];
+}
+
+}  // namespace fourd::validate

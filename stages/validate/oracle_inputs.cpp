@@ -1,0 +1,189 @@
+#include "stages/validate/oracle_inputs.h"
+
+#include <fmt/format.h>
+#include <tbb/parallel_for.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <random>
+
+#include "pipeline/core/error.h"
+#include "pipeline/core/files.h"
+#include "pipeline/core/isosurface.h"
+#include "pipeline/core/log.h"
+#include "pipeline/core/mesh_io.h"
+#include "stages/validate/mesh_query.h"
+
+namespace fourd::validate {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::vector<fs::path> sorted_entries(const fs::path& dir, bool directories, const std::string& ext) {
+  std::vector<fs::path> out;
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) return out;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    const std::string name = e.path().filename().string();
+    if (name.empty() || name.front() == '.') continue;
+    if (directories ? e.is_directory() : (e.is_regular_file() && e.path().extension() == ext)) {
+      out.push_back(e.path());
+    }
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+// Copies every regular file under `from` to the same relative path under `to`.
+void copy_tree(const fs::path& from, const fs::path& to) {
+  ensure_directory(to);
+  fs::copy(from, to, fs::copy_options::recursive | fs::copy_options::overwrite_existing);
+}
+
+// A seed per (take, frame) so every frame gets its own grid offset, reproducibly.
+unsigned frame_seed(int seed, const std::string& take, const std::string& frame) {
+  return static_cast<unsigned>(hash_bytes(take + "/" + frame, static_cast<std::uint64_t>(seed)));
+}
+
+}  // namespace
+
+Mesh remesh_fresh(const Mesh& mesh, double voxel, const Eigen::Vector3d& offset,
+                  double noise_sigma, unsigned seed) {
+  if (mesh.triangles.empty()) throw InputError("remesh_fresh: the mesh has no triangles");
+  const MeshQuery query(mesh);
+  Vec3f lo, hi;
+  bounding_box(mesh, &lo, &hi);
+  ScalarGrid grid;
+  grid.voxel = voxel;
+  grid.origin = lo.cast<double>() - Eigen::Vector3d::Constant(2 * voxel) + offset;
+  const Eigen::Vector3d extent = hi.cast<double>() + Eigen::Vector3d::Constant(2 * voxel) - grid.origin;
+  grid.nx = static_cast<int>(std::ceil(extent.x() / voxel)) + 1;
+  grid.ny = static_cast<int>(std::ceil(extent.y() / voxel)) + 1;
+  grid.nz = static_cast<int>(std::ceil(extent.z() / voxel)) + 1;
+  const float band = static_cast<float>(2 * voxel);
+  grid.values.assign(static_cast<std::size_t>(grid.nx) * grid.ny * grid.nz, band);
+
+  // Inside by the parity of surface crossings along x, row by row.
+  tbb::parallel_for(0, grid.nz, [&](int z) {
+    for (int y = 0; y < grid.ny; ++y) {
+      const Eigen::Vector3d row = grid.point(0, y, z);
+      const std::vector<double> xs = query.crossings_along_x(row.y(), row.z());
+      std::size_t next = 0;
+      bool inside = false;
+      for (int x = 0; x < grid.nx; ++x) {
+        const double px = row.x() + voxel * x;
+        while (next < xs.size() && xs[next] < px) {
+          inside = !inside;
+          ++next;
+        }
+        if (inside) grid.values[grid.index(x, y, z)] = -band;
+      }
+    }
+  });
+  // Exact distances where the sign changes within a cell (the only samples the isosurface uses).
+  std::vector<float> signed_distance = grid.values;
+  tbb::parallel_for(0, grid.nz, [&](int z) {
+    for (int y = 0; y < grid.ny; ++y) {
+      for (int x = 0; x < grid.nx; ++x) {
+        const bool in = grid.at(x, y, z) < 0;
+        bool boundary = false;
+        for (int dz = -1; dz <= 1 && !boundary; ++dz) {
+          for (int dy = -1; dy <= 1 && !boundary; ++dy) {
+            for (int dx = -1; dx <= 1 && !boundary; ++dx) {
+              const int a = x + dx, b = y + dy, c = z + dz;
+              if (a < 0 || b < 0 || c < 0 || a >= grid.nx || b >= grid.ny || c >= grid.nz) continue;
+              boundary = (grid.at(a, b, c) < 0) != in;
+            }
+          }
+        }
+        if (!boundary) continue;
+        const float d = static_cast<float>(query.distance(grid.point(x, y, z).cast<float>()));
+        signed_distance[grid.index(x, y, z)] = in ? -d : d;
+      }
+    }
+  });
+  grid.values = std::move(signed_distance);
+  Mesh out = extract_isosurface(grid, 0.0f);
+  if (noise_sigma > 0) {
+    compute_vertex_normals(out);
+    std::mt19937 rng(seed);
+    std::normal_distribution<float> noise(0.0f, static_cast<float>(noise_sigma));
+    for (std::size_t i = 0; i < out.positions.size(); ++i) out.positions[i] += noise(rng) * out.normals[i];
+    out.normals.clear();
+  }
+  return out;
+}
+
+void prepare_oracle_inputs(const Session& session, const OracleOptions& options) {
+  const fs::path truth = session.ground_truth_dir();
+  const fs::path meshes = truth / "meshes";
+  if (!fs::is_directory(meshes)) {
+    throw InputError(fmt::format("{}: no ground-truth meshes; oracle inputs need a synthetic "
+                                 "session (run fourd-synth first)",
+                                 meshes.string()));
+  }
+  const fs::path target = session.dir("oracle");
+  const fs::path staging = session.dir(fmt::format("oracle.staging-{}", ::getpid()));
+  std::error_code ec;
+  fs::remove_all(staging, ec);
+  ensure_directory(staging);
+  try {
+    // segment: the ground-truth silhouettes, in segment/'s layout <take>/<camera>/<frame>.png.
+    if (fs::is_directory(truth / "silhouettes")) {
+      copy_tree(truth / "silhouettes", staging / "segment");
+    } else {
+      log::warn("{}: no ground-truth silhouettes; oracle/segment is not written",
+                (truth / "silhouettes").string());
+    }
+    // align: the ground truth in its consistent topology.
+    copy_tree(meshes, staging / "align");
+    fs::copy_file(truth / "template.ply", staging / "align" / "template.ply",
+                  fs::copy_options::overwrite_existing);
+
+    // reconstruct: every frame re-meshed with fresh connectivity.
+    struct Item {
+      std::string take;
+      fs::path file;
+    };
+    std::vector<Item> items;
+    for (const fs::path& take : sorted_entries(meshes, true, "")) {
+      for (const fs::path& file : sorted_entries(take, false, ".ply")) {
+        items.push_back({take.filename().string(), file});
+      }
+    }
+    if (items.empty()) throw InputError(fmt::format("{}: no <take>/<frame>.ply", meshes.string()));
+    log::Progress progress("re-meshing ground truth with fresh connectivity", items.size());
+    tbb::parallel_for(std::size_t{0}, items.size(), [&](std::size_t i) {
+      const Item& item = items[i];
+      const unsigned seed = frame_seed(options.seed, item.take, item.file.stem().string());
+      std::mt19937 rng(seed);
+      std::uniform_real_distribution<double> fraction(0.05, 0.95);
+      const Eigen::Vector3d offset =
+          options.remesh_voxel * Eigen::Vector3d(fraction(rng), fraction(rng), fraction(rng));
+      Mesh mesh = read_ply(item.file);
+      mesh.check(item.file.string());
+      const Mesh fresh = remesh_fresh(mesh, options.remesh_voxel, offset, options.noise_sigma, seed);
+      write_ply(staging / "reconstruct" / item.take / item.file.filename(), fresh);
+      progress.step();
+    });
+    YAML::Emitter used;
+    used << to_yaml(options);
+    write_file_atomic(staging / "options.yaml", std::string(used.c_str()) + "\n");
+
+    // Replace oracle/ as a whole.
+    const fs::path previous = session.dir(fmt::format("oracle.previous-{}", ::getpid()));
+    fs::remove_all(previous, ec);
+    if (fs::exists(target)) fs::rename(target, previous);
+    fs::rename(staging, target);
+    fs::remove_all(previous, ec);
+    log::info("wrote {}: {} frames re-meshed (voxel {:.1f} mm, noise {:.1f} mm)", target.string(),
+              items.size(), 1e3 * options.remesh_voxel, 1e3 * options.noise_sigma);
+  } catch (...) {
+    fs::remove_all(staging, ec);
+    throw;
+  }
+}
+
+}  // namespace fourd::validate

@@ -1,0 +1,49 @@
+#pragma once
+// Oracle inputs (DESIGN.md "Oracle inputs"): stage inputs made from the ground truth of a
+// synthetic session, so each stage's own error can be measured apart from the errors it
+// inherits. `fourd-validate SESSION --prepare-oracle` writes, replacing the folder as a whole:
+//
+//   oracle/segment/<take>/<camera>/<frame>.png  ground-truth silhouettes (segment/'s layout)
+//   oracle/reconstruct/<take>/<frame>.ply       ground-truth surfaces re-meshed with fresh
+//                                               random connectivity per frame (+ optional
+//                                               noise), so alignment cannot use the topology
+//   oracle/align/template.ply, <take>/<frame>.ply   ground truth in its one consistent topology
+//   oracle/options.yaml                         the options used
+//
+// Only the validate stage reads ground_truth/.
+#include <Eigen/Core>
+
+#include "pipeline/core/config.h"
+#include "pipeline/core/mesh.h"
+#include "pipeline/core/session.h"
+
+namespace fourd::validate {
+
+struct OracleOptions {
+  double remesh_voxel = 0.008;  // grid spacing of the fresh re-meshing [m]
+  double noise_sigma = 0.0;     // Gaussian noise along the normals of re-meshed surfaces [m]
+  int seed = 1;                 // random grid offsets and noise
+
+  template <class V>
+  void visit(V& v) {
+    v("remesh_voxel", remesh_voxel, "grid spacing of the fresh re-meshing [m]",
+      Range{1e-4, 1.0});
+    v("noise_sigma", noise_sigma, "Gaussian noise along the normals of re-meshed surfaces [m]",
+      Range{0, 0.1});
+    v("seed", seed, "seed of the grid offsets and noise", Range{0, 1e9});
+  }
+};
+
+// The same closed surface with fresh connectivity: the zero set of its signed distance sampled
+// on a grid of `voxel` shifted by `offset` (a fraction of a voxel gives unrelated vertices and
+// triangles). With noise_sigma > 0 vertices move along their normals by Gaussian noise [m].
+// The mesh must be closed (inside/outside by ray parity). Throws InputError on an empty mesh.
+Mesh remesh_fresh(const Mesh& mesh, double voxel, const Eigen::Vector3d& offset,
+                  double noise_sigma = 0, unsigned seed = 1);
+
+// Writes <session>/oracle/ from ground_truth/ (see above), atomically as a whole folder.
+// Options come from session.yaml's stages.oracle section. Throws InputError when the session
+// has no ground truth.
+void prepare_oracle_inputs(const Session& session, const OracleOptions& options);
+
+}  // namespace fourd::validate

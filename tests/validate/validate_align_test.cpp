@@ -1,0 +1,92 @@
+// Oracle inputs (fresh re-meshing) and the align validator's measurements on hand-made data.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+
+#include "pipeline/core/files.h"
+#include "pipeline/core/mesh_io.h"
+#include "stages/validate/oracle_inputs.h"
+#include "stages/validate/validate_align.h"
+#include "tests/test_shapes.h"
+
+namespace fourd::validate {
+namespace {
+
+namespace fs = std::filesystem;
+
+TEST(OracleInputs, RemeshFreshKeepsTheSurfaceAndChangesTheConnectivity) {
+  const Mesh sphere = test::make_icosphere(4, 0.3f);
+  const Mesh fresh = remesh_fresh(sphere, 0.01, {0.0031, 0.0017, 0.0043});
+  ASSERT_FALSE(fresh.triangles.empty());
+  EXPECT_NE(fresh.num_vertices(), sphere.num_vertices());
+  double worst = 0;
+  for (const Vec3f& p : fresh.positions) worst = std::max(worst, std::fabs(p.norm() - 0.3));
+  EXPECT_LT(worst, 0.003);  // the icosphere's facets deviate from the sphere by ~1 mm
+  // Closed: every edge shared by exactly two triangles (Euler characteristic 2).
+  EXPECT_EQ(static_cast<long>(fresh.num_vertices()) - static_cast<long>(fresh.triangles.size()) / 2, 2);
+
+  const Mesh noisy = remesh_fresh(sphere, 0.01, {0.0031, 0.0017, 0.0043}, 0.004, 3);
+  double sum = 0;
+  for (const Vec3f& p : noisy.positions) sum += std::pow(p.norm() - 0.3, 2);
+  EXPECT_GT(std::sqrt(sum / noisy.num_vertices()), 0.002);
+}
+
+class AlignMeasure : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    root_ = fs::temp_directory_path() / ("fourd_validate_align_" + std::to_string(::getpid()));
+    fs::remove_all(root_);
+    truth0_ = test::make_icosphere(3, 0.3f);
+    truth1_ = truth0_;
+    for (Vec3f& p : truth1_.positions) p += Vec3f(0.1f, 0, 0);
+    write_ply(root_ / "truth" / "t" / "000000.ply", truth0_);
+    write_ply(root_ / "truth" / "t" / "000001.ply", truth1_);
+    write_ply(root_ / "align" / "template.ply", truth0_);
+    write_file_atomic(root_ / "align" / "tree.json",
+                      R"({"root": 0, "nodes": [{"take": "t", "frame": 0}, {"take": "t", "frame": 1}]})");
+  }
+  void TearDown() override { fs::remove_all(root_); }
+  AlignmentErrors measure() {
+    AlignmentErrors e = measure_alignment(root_ / "align", root_ / "truth", root_ / "truth", true);
+    e.summarise();
+    return e;
+  }
+  fs::path root_;
+  Mesh truth0_, truth1_;
+};
+
+TEST_F(AlignMeasure, ExactAlignmentHasNoError) {
+  write_ply(root_ / "align" / "t" / "000000.ply", truth0_);
+  write_ply(root_ / "align" / "t" / "000001.ply", truth1_);
+  const AlignmentErrors e = measure();
+  ASSERT_EQ(e.frames.size(), 2u);
+  EXPECT_LT(e.correspondence_rms, 1e-5);
+  EXPECT_LT(e.surface_rms, 1e-5);
+  EXPECT_EQ(e.flipped, 0);
+}
+
+TEST_F(AlignMeasure, FrameLeftBehindAndFlippedTrianglesAreMeasured) {
+  write_ply(root_ / "align" / "t" / "000000.ply", truth0_);
+  write_ply(root_ / "align" / "t" / "000001.ply", truth0_);  // not moved: 0.1 m off
+  AlignmentErrors e = measure();
+  EXPECT_NEAR(e.correspondence_rms, 0.1 / std::sqrt(2.0), 1e-4);
+  EXPECT_NEAR(e.frames[1].correspondence[0], 0.1, 1e-5);
+  EXPECT_GT(e.surface_rms, 0.0);
+  EXPECT_EQ(e.flipped, 0);
+
+  // A fold: one vertex pushed through the surface to the other side of the centre turns its
+  // (5 or 6) incident triangles over, and nothing else.
+  Mesh folded = truth1_;
+  const Vec3f centre(0.1f, 0, 0);
+  folded.positions[0] = centre - 0.5f * (folded.positions[0] - centre);
+  write_ply(root_ / "align" / "t" / "000001.ply", folded);
+  e = measure();
+  int incident = 0;
+  for (const Tri& t : truth0_.triangles) incident += t[0] == 0 || t[1] == 0 || t[2] == 0;
+  EXPECT_EQ(e.flipped, incident);
+}
+
+}  // namespace
+}  // namespace fourd::validate
