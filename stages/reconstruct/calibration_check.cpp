@@ -66,6 +66,47 @@ std::vector<Camera> transform_rig(std::vector<Camera> cameras, const Eigen::Matr
 
 }  // namespace
 
+std::string triangulation_failure(const fs::path& log, int exit_code,
+                                  const std::vector<Camera>& cameras) {
+  std::ifstream in(log);
+  std::string line;
+  std::vector<long> features;
+  long matches = -1, points = -1;
+  auto number_after = [](const std::string& l, const std::string& key) -> long {
+    const std::size_t at = l.find(key);
+    if (at == std::string::npos) return -1;
+    std::istringstream s(l.substr(at + key.size()));
+    long n = -1;
+    s >> n;
+    return n;
+  };
+  while (std::getline(in, line)) {
+    if (long n = number_after(line, "Features:"); n >= 0) features.push_back(n);
+    if (long n = number_after(line, "Loading matches..."); n >= 0) matches = n;
+    if (long n = number_after(line, "=> Triangulated"); n > 0) points = std::max(points, 0L) + n;
+  }
+  std::string per_camera;
+  for (std::size_t i = 0; i < features.size() && i < cameras.size(); ++i) {
+    per_camera += fmt::format("{}{} {}", i ? ", " : "", cameras[i].name, features[i]);
+  }
+  std::string why;
+  if (matches == 0) {
+    why = "COLMAP found no feature match between any two cameras";
+  } else if (points <= 0) {
+    why = fmt::format("COLMAP matched features ({} image pairs with matches) but could not "
+                      "triangulate any point with the calibrated poses",
+                      matches < 0 ? std::string("?") : std::to_string(matches));
+  } else {
+    why = fmt::format("COLMAP point_triangulator failed (exit {})", exit_code);
+  }
+  return fmt::format(
+      "{} (SIFT features per image: {}); the calibration cannot be checked on this frame — "
+      "cameras too far apart or images too small/untextured for SIFT. Try another frame "
+      "(--check-frame), a lower calibration_check.peak_threshold, or a rig with closer "
+      "cameras. COLMAP log: {}",
+      why, per_camera.empty() ? "unknown" : per_camera, log.string());
+}
+
 nlohmann::json CalibrationCheckResult::to_json() const {
   nlohmann::json j;
   j["take"] = take;
@@ -154,7 +195,8 @@ CalibrationCheckResult check_calibration(const std::string& colmap,
          "--image_list_path", (work / "list.txt").string(), "--ImageReader.camera_model", "OPENCV",
          "--ImageReader.camera_params", camera_params(cameras[i]), "--SiftExtraction.use_gpu", "0",
          "--SiftExtraction.num_threads", "2", "--SiftExtraction.max_num_features",
-         std::to_string(options.max_features)},
+         std::to_string(options.max_features), "--SiftExtraction.peak_threshold",
+         fmt::format("{}", options.peak_threshold)},
         log);
   }
   run_colmap_checked(colmap, "exhaustive_matcher",
@@ -165,7 +207,7 @@ CalibrationCheckResult check_calibration(const std::string& colmap,
   fs::remove(work / "input" / "rig.json", ec);  // COLMAP's readers do not know it
   const std::string tol = fmt::format("{}", options.max_error_px);
   ensure_directory(work / "triangulated");
-  run_colmap_checked(
+  const int triangulator_exit = run_colmap(
       colmap, "point_triangulator",
       {"--database_path", db.string(), "--image_path", (work / "images").string(), "--input_path",
        (work / "input").string(), "--output_path", (work / "triangulated").string(),
@@ -174,6 +216,11 @@ CalibrationCheckResult check_calibration(const std::string& colmap,
        "--Mapper.tri_continue_max_angle_error", "4", "--Mapper.ba_refine_focal_length", "0",
        "--Mapper.ba_refine_extra_params", "0", "--Mapper.num_threads", "2"},
       log);
+  if (triangulator_exit != 0) {
+    // COLMAP 3.8 aborts (exit 134, a failed CHECK in its bundle adjustment) when there is
+    // nothing to triangulate: say why instead of showing its stack trace.
+    throw SolverError(triangulation_failure(log, triangulator_exit, cameras));
+  }
   run_colmap_checked(colmap, "model_converter",
                      {"--input_path", (work / "triangulated").string(), "--output_path",
                       (work / "triangulated").string(), "--output_type", "TXT"},
@@ -183,7 +230,12 @@ CalibrationCheckResult check_calibration(const std::string& colmap,
   result.cameras = reprojection_errors(cameras, work / "triangulated", &result.points);
   for (const Camera& c : cameras) {
     const CameraReprojection& e = result.cameras[c.name];
-    if (e.observations == 0) {
+    if (e.observations > 0 && e.observations < 10) {
+      result.warnings.push_back(fmt::format(
+          "camera {}: only {} triangulated point(s) in its image (mean reprojection error "
+          "{:.2f} px) — too few to judge its calibration (few SIFT matches between the cameras)",
+          c.name, e.observations, e.mean_error_px));
+    } else if (e.observations == 0) {
       result.warnings.push_back(fmt::format(
           "camera {}: no point triangulated in its image — it sees nothing the others see, or "
           "its calibration is far off", c.name));

@@ -32,6 +32,8 @@ struct CalibrationCheckOptions {
   bool refine_focal_length = true;  // ... focal lengths too (principal points and distortion stay)
   double max_error_px = 12;     // largest reprojection error triangulation accepts [px]
   int max_features = 8192;      // SIFT features per image
+  double peak_threshold = 0.002;  // SIFT peak threshold (COLMAP's default 0.0067 finds few
+                                  // features on small images)
   std::string executable = "colmap";  // name on PATH or path
 
   template <class V>
@@ -46,6 +48,8 @@ struct CalibrationCheckOptions {
     v("max_error_px", max_error_px, "largest reprojection error triangulation accepts [px]",
       Range{0.5, 1000});
     v("max_features", max_features, "SIFT features per image", Range{100, 100000});
+    v("peak_threshold", peak_threshold, "SIFT peak threshold (lower: more features)",
+      Range{0.0001, 0.1});
     v("executable", executable, "colmap executable (name on PATH or path)");
   }
 };
@@ -77,6 +81,11 @@ struct CalibrationCheckResult {
 // Runs the check on the given capture images (one per camera, same order) in `out_dir`. Throws
 // SolverError when a COLMAP step fails (naming the step and quoting its log), InputError when
 // the images do not fit the cameras.
+// Why point_triangulator failed, from its log (features per image, matched pairs,
+// triangulated points), as one message naming the cameras and what to try.
+std::string triangulation_failure(const std::filesystem::path& log, int exit_code,
+                                  const std::vector<Camera>& cameras);
+
 CalibrationCheckResult check_calibration(const std::string& colmap,
                                          const std::vector<Camera>& cameras,
                                          const std::vector<cv::Mat>& images,

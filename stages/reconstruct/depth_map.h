@@ -26,7 +26,7 @@ struct DepthMapOptions {
   double front_margin = 0.01;          // depth searched in front of the hull surface [m]
   double search_depth = 0.10;          // depth searched behind the hull surface [m]
   double step = 0.0025;                // depth step of the sweep [m]
-  double min_ncc = 0.5;                // best mean NCC below this: no depth
+  double min_ncc = 0.7;                // best mean NCC below this: no depth
   double min_texture = 1.5;            // window standard deviation below this [grey levels]: no depth
   double min_window_fill = 0.5;        // fraction of the window inside the silhouette
   double occlusion_margin = 0.10;      // a neighbour sees a point at most this far behind its hull [m]

@@ -19,7 +19,7 @@ namespace fourd::reconstruct {
 struct FusionOptions {
   double truncation = 0.015;   // TSDF truncation [m]
   double band = 0.12;          // depth inside the hull where depth maps are fused [m]
-  double hull_weight = 0.3;    // weight of the hull's vote relative to one depth map's
+  double hull_weight = 1.0;    // weight of the hull's vote relative to one depth map's
   double score_weight = 1.0;   // 1: weight votes by their NCC score above min_ncc; 0: equally
 
   template <class V>

@@ -84,6 +84,24 @@ std::size_t boundary_edges(const Mesh& mesh) {
   return n;
 }
 
+// Every `step`-th sample of the grid in each direction (the same field on a coarser grid).
+ScalarGrid subsample(const ScalarGrid& grid, int step) {
+  if (step <= 1) return grid;
+  ScalarGrid out;
+  out.origin = grid.origin;
+  out.voxel = grid.voxel * step;
+  out.nx = (grid.nx - 1) / step + 1;
+  out.ny = (grid.ny - 1) / step + 1;
+  out.nz = (grid.nz - 1) / step + 1;
+  out.values.resize(static_cast<std::size_t>(out.nx) * out.ny * out.nz);
+  tbb::parallel_for(0, out.nz, [&](int z) {
+    for (int y = 0; y < out.ny; ++y)
+      for (int x = 0; x < out.nx; ++x)
+        out.values[out.index(x, y, z)] = grid.at(x * step, y * step, z * step);
+  });
+  return out;
+}
+
 // Drops faces with a vertex more than `tolerance` outside the hull.
 Mesh trim_to_hull(const Mesh& mesh, const VisualHull& hull, double tolerance) {
   std::vector<char> outside(mesh.positions.size());
@@ -116,14 +134,20 @@ FrameResult reconstruct_frame(const Rig& rig, const FrameInput& input,
                      "silhouette (check the silhouettes and the calibration)";
     return result;
   }
-  Mesh hull_mesh = keep_largest_component(extract_isosurface(field, 0.0f));
+  Mesh hull_mesh =
+      keep_largest_component(extract_isosurface(subsample(field, options.isosurface_step), 0.0f));
   if (hull_mesh.triangles.empty()) {
     result.failure = "the visual hull has no surface";
     return result;
   }
   timer.done("visual_hull");
   if (want_visual_hull) {
-    result.visual_hull = remesh(hull_mesh, options.remesh);
+    // Only for validation and comparison: written as extracted, from a coarser sampling
+    // (decimating or remeshing it would cost as much as the final mesh's remeshing).
+    result.visual_hull = options.visual_hull_step == options.isosurface_step
+                             ? hull_mesh
+                             : keep_largest_component(extract_isosurface(
+                                   subsample(field, options.visual_hull_step), 0.0f));
     timer.done("visual_hull_remesh");
   }
 
@@ -163,7 +187,8 @@ FrameResult reconstruct_frame(const Rig& rig, const FrameInput& input,
     if (options.method == "stereo") {
       fuse_depth_maps(field, pinholes, depth_maps, options.depth.min_ncc, options.fusion);
       timer.done("fusion");
-      surface = keep_largest_component(extract_isosurface(field, 0.0f));
+      surface = keep_largest_component(
+          extract_isosurface(subsample(field, options.isosurface_step), 0.0f));
       timer.done("isosurface");
     } else {
       const std::string colmap = find_colmap(options.colmap.executable);

@@ -15,8 +15,8 @@
 //   <take>/<frame>.ply               the mesh (binary PLY)
 //   <take>/<frame>.json              what happened to that frame: vertices, seconds per step,
 //                                    warnings, or why it was skipped
-//   visual_hull/<take>/<frame>.ply   the visual hull alone, remeshed the same way (validation
-//                                    compares both)
+//   visual_hull/<take>/<frame>.ply   the visual hull alone (isosurface of a coarser sampling
+//                                    of the hull field, not remeshed; validation compares both)
 //   report.json                      every frame's record plus a summary, rebuilt after each run
 //   options.yaml                     the options used
 //   calibration_check/               COLMAP's view of the calibration (calibration_check.h)
@@ -48,6 +48,12 @@ struct ReconstructOptions {
   int min_cameras = 3;             // usable cameras a frame needs
   bool write_visual_hull = true;   // also write visual_hull/<take>/<frame>.ply
   int frames_in_parallel = 0;      // frames reconstructed at once (0: as many as threads)
+  // Isosurfaces are extracted from every n-th sample of the fields: the final mesh has ~2 cm
+  // edges, and a fine grid's isosurface (several 100k vertices) costs seconds to decimate.
+  int isosurface_step = 3;
+  // The visual hull written for validation is the isosurface of every n-th hull sample, not
+  // decimated (cheap; at 4 x 6 mm it is within ~1-2 mm of the full-resolution hull).
+  int visual_hull_step = 4;
   VisualHullOptions visual_hull;
   DepthMapOptions depth;
   FusionOptions fusion;
@@ -62,6 +68,10 @@ struct ReconstructOptions {
     v("write_visual_hull", write_visual_hull, "also write the visual hull meshes");
     v("frames_in_parallel", frames_in_parallel, "frames reconstructed at once (0: threads)",
       Range{0, 1024});
+    v("isosurface_step", isosurface_step,
+      "isosurfaces from every n-th field sample (1: the full grid)", Range{1, 8});
+    v("visual_hull_step", visual_hull_step,
+      "written visual hull: isosurface of every n-th hull sample", Range{1, 8});
     v("visual_hull", visual_hull, "visual hull");
     v("depth", depth, "depth maps (hull-guided plane sweep)");
     v("fusion", fusion, "depth map fusion (method stereo)");

@@ -59,6 +59,8 @@ VisualHull::VisualHull(const std::vector<Camera>& cameras, const std::vector<cv:
   if (cameras.size() != silhouettes.size()) {
     throw InputError("visual hull: one silhouette per camera is needed");
   }
+  min_views_ = std::max(options.min_views,
+                        static_cast<int>(std::ceil(options.min_view_fraction * cameras.size() - 1e-9)));
   distance_.resize(cameras.size());
   tbb::parallel_for(std::size_t{0}, cameras.size(), [&](std::size_t i) {
     distance_[i] = silhouette_signed_distance(silhouettes[i]);
@@ -77,7 +79,7 @@ float VisualHull::value(const Eigen::Vector3d& point) const {
     best = std::max(best, static_cast<float>(bilinear(distance_[i], px.x(), px.y()) * metres_per_px));
   }
   // Too few cameras see the point to carve it: call it clearly outside.
-  if (views < options_.min_views) return kUnseen;
+  if (views < min_views_) return kUnseen;
   return best;
 }
 

@@ -21,6 +21,10 @@ struct VisualHullOptions {
   std::vector<double> volume_min = {-3.0, -3.0, -0.05};  // capture volume searched [m]
   std::vector<double> volume_max = {3.0, 3.0, 2.4};
   int min_views = 2;            // a point seen by fewer cameras cannot be carved and counts as outside
+  // ... nor by fewer than this fraction of the cameras: the performer is seen by every camera,
+  // while a point near the volume's border seen by only two opposite cameras, in line with the
+  // performer, would be a phantom part of the hull (with 4 cameras it can outgrow the body).
+  double min_view_fraction = 0.75;
 
   template <class V>
   void visit(V& v) {
@@ -31,6 +35,8 @@ struct VisualHullOptions {
     v("volume_min", volume_min, "capture volume lower corner [m]");
     v("volume_max", volume_max, "capture volume upper corner [m]");
     v("min_views", min_views, "cameras that must see a point", Range{1, 1000});
+    v("min_view_fraction", min_view_fraction, "fraction of the cameras that must see a point",
+      Range{0, 1});
   }
   void check() const;
 };
@@ -56,6 +62,7 @@ class VisualHull {
   const std::vector<Camera>& cameras_;
   std::vector<cv::Mat> distance_;  // per camera, CV_32F
   VisualHullOptions options_;
+  int min_views_ = 1;  // max(min_views, ceil(min_view_fraction x cameras))
 };
 
 }  // namespace fourd::reconstruct

@@ -85,6 +85,8 @@ std::string report_markdown(const Session& session, const std::vector<StageRepor
 const std::vector<ValidatorEntry>& validators() {
   static const std::vector<ValidatorEntry> list = {
       {"synth", validate_synth},
+      {"segment", validate_segment},
+      {"reconstruct", validate_reconstruct},
       {"align", validate_align},
       {"timewarp", validate_timewarp},
       {"blend", validate_blend},

@@ -94,6 +94,13 @@ StageReport validate_blend(const ValidationContext& context);
 // Motion graph: Table 2 from graph/table2.json (transitions.*).
 StageReport validate_transitions(const ValidationContext& context);
 
+// segment/ silhouettes against ground_truth/silhouettes/: segment.iou_mean (validate_segment.cpp).
+StageReport validate_segment(const ValidationContext& context);
+
+// reconstruct/ meshes (and visual_hull/) against ground_truth/meshes/: accuracy, completeness,
+// F-score, seconds per frame, per take, plus error heat-maps (validate_reconstruct.cpp).
+StageReport validate_reconstruct(const ValidationContext& context);
+
 // align/ and align_oracle/ against ground_truth/meshes/: correspondence, surface, flipped
 // triangles, seconds per frame, plot vs the sequential baseline (validate_align.cpp).
 StageReport validate_align(const ValidationContext& context);

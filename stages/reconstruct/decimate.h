@@ -1,0 +1,15 @@
+#pragma once
+// Fast mesh simplification (OpenMesh's quadric-error decimater): the first, cheap step of
+// remeshing a fine isosurface down to a few thousand vertices.
+#include "pipeline/core/mesh.h"
+
+namespace fourd::reconstruct {
+
+// Collapses edges by increasing quadric error (Garland & Heckbert), refusing collapses that
+// flip a face normal by more than `max_normal_deviation_deg` (<= 0: no such check), until at most `target_vertices`
+// remain (or no legal collapse is left). The surface's topology is kept (closed stays
+// closed). Non-manifold input faces are dropped by OpenMesh. A mesh already at or below the
+// target is returned unchanged.
+Mesh decimate(const Mesh& mesh, int target_vertices, double max_normal_deviation_deg = 60);
+
+}  // namespace fourd::reconstruct

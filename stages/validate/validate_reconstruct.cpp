@@ -1,0 +1,487 @@
+// Validation of the reconstruct stage: its meshes against the ground-truth surfaces.
+//
+//   reconstruct/<take>/<frame>.ply               final mesh   (reconstruct_oracle/: oracle)
+//   reconstruct/visual_hull/<take>/<frame>.ply   visual hull alone
+//   reconstruct/<take>/<frame>.json              per-frame record: seconds per step
+//   ground_truth/meshes/<take>/<frame>.ply       the true surface
+//
+// Both surfaces are sampled uniformly by area (a fixed number of points per mesh, fixed seed);
+// accuracy = distance of reconstruction samples to the true surface, completeness = fraction of
+// true-surface samples within 10 mm of the reconstruction, F-score at 5 mm from precision and
+// recall at 5 mm. Distances by CGAL's AABB tree (this is the only CGAL file of the stage).
+#include <CGAL/AABB_traits.h>
+#include <CGAL/AABB_tree.h>
+#include <CGAL/AABB_triangle_primitive.h>
+#include <CGAL/Simple_cartesian.h>
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgproc.hpp>
+#include <random>
+
+#include "pipeline/core/camera.h"
+#include "pipeline/core/colmap_model.h"
+#include "pipeline/core/error.h"
+#include "pipeline/core/files.h"
+#include "pipeline/core/image_io.h"
+#include "pipeline/core/mesh_io.h"
+#include "stages/validate/validate.h"
+
+namespace fourd::validate {
+namespace {
+
+namespace fs = std::filesystem;
+
+using K = CGAL::Simple_cartesian<double>;
+using Triangle = K::Triangle_3;
+using Point = K::Point_3;
+using Primitive = CGAL::AABB_triangle_primitive<K, std::vector<Triangle>::const_iterator>;
+using Tree = CGAL::AABB_tree<CGAL::AABB_traits<K, Primitive>>;
+
+constexpr int kSamplesPerMesh = 20000;
+constexpr double kCompletenessMm = 10, kFscoreMm = 5;
+constexpr double kHeatMaxMm = 20;  // colour scale of the heat-maps
+
+// Distances to one mesh's surface.
+class SurfaceDistance {
+ public:
+  explicit SurfaceDistance(const Mesh& mesh) {
+    triangles_.reserve(mesh.triangles.size());
+    for (const Tri& t : mesh.triangles) {
+      auto p = [&](int k) {
+        const Vec3f& v = mesh.positions[t[k]];
+        return Point(v.x(), v.y(), v.z());
+      };
+      Triangle tri(p(0), p(1), p(2));
+      if (!tri.is_degenerate()) triangles_.push_back(tri);
+    }
+    if (triangles_.empty()) throw InputError("mesh without a non-degenerate triangle");
+    tree_.insert(triangles_.begin(), triangles_.end());
+    tree_.build();
+    tree_.accelerate_distance_queries();
+  }
+  double operator()(const Vec3f& p) const {
+    return std::sqrt(tree_.squared_distance(Point(p.x(), p.y(), p.z())));
+  }
+
+ private:
+  std::vector<Triangle> triangles_;
+  Tree tree_;
+};
+
+// `count` points uniformly distributed over the surface by area.
+std::vector<Vec3f> sample_surface(const Mesh& mesh, int count, unsigned seed) {
+  std::vector<double> cumulative;
+  cumulative.reserve(mesh.triangles.size());
+  double total = 0;
+  for (const Tri& t : mesh.triangles) {
+    const Vec3f& a = mesh.positions[t[0]];
+    total += 0.5 * (mesh.positions[t[1]] - a).cross(mesh.positions[t[2]] - a).norm();
+    cumulative.push_back(total);
+  }
+  std::vector<Vec3f> out;
+  if (total <= 0) return out;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  out.reserve(count);
+  for (int i = 0; i < count; ++i) {
+    const double r = u(rng) * total;
+    std::size_t f = std::lower_bound(cumulative.begin(), cumulative.end(), r) - cumulative.begin();
+    f = std::min(f, mesh.triangles.size() - 1);
+    const Tri& t = mesh.triangles[f];
+    double a = u(rng), b = u(rng);
+    if (a + b > 1) {
+      a = 1 - a;
+      b = 1 - b;
+    }
+    const Vec3f& p0 = mesh.positions[t[0]];
+    out.push_back(p0 + float(a) * (mesh.positions[t[1]] - p0) +
+                  float(b) * (mesh.positions[t[2]] - p0));
+  }
+  return out;
+}
+
+std::vector<std::string> subfolders(const fs::path& dir) {
+  std::vector<std::string> out;
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) return out;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    const std::string name = e.path().filename().string();
+    if (e.is_directory() && !name.empty() && name.front() != '.') out.push_back(name);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+int frame_count(const fs::path& dir, const std::string& ext) {
+  int n = 0;
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) return 0;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    const std::string stem = e.path().stem().string();
+    if (e.path().extension() != ext || stem.size() != 6 ||
+        !std::all_of(stem.begin(), stem.end(), ::isdigit)) {
+      continue;
+    }
+    n = std::max(n, std::stoi(stem) + 1);
+  }
+  return n;
+}
+
+std::vector<int> sample_frames(int frames, int count) {
+  std::vector<int> out;
+  if (count >= frames) {
+    for (int f = 0; f < frames; ++f) out.push_back(f);
+    return out;
+  }
+  for (int i = 0; i < count; ++i) {
+    int f = count == 1 ? frames / 2
+                       : static_cast<int>(std::lround(double(i) * (frames - 1) / (count - 1)));
+    if (out.empty() || out.back() != f) out.push_back(f);
+  }
+  return out;
+}
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(q * (v.size() - 1) + 0.5));
+  std::nth_element(v.begin(), v.begin() + k, v.end());
+  return v[k];
+}
+
+double fraction_within(const std::vector<double>& v, double bound) {
+  if (v.empty()) return 0;
+  return double(std::count_if(v.begin(), v.end(), [&](double d) { return d <= bound; })) / v.size();
+}
+
+// Distances in mm of one reconstruction to the truth, both ways.
+struct Distances {
+  std::vector<double> accuracy;      // reconstruction samples -> truth
+  std::vector<double> completeness;  // truth samples -> reconstruction
+  void append(const Distances& o) {
+    accuracy.insert(accuracy.end(), o.accuracy.begin(), o.accuracy.end());
+    completeness.insert(completeness.end(), o.completeness.begin(), o.completeness.end());
+  }
+};
+
+struct Scores {
+  double accuracy_median = 0, accuracy_p90 = 0, completeness = 0, fscore = 0;
+  static Scores of(const Distances& d) {
+    Scores s;
+    s.accuracy_median = percentile(d.accuracy, 0.5);
+    s.accuracy_p90 = percentile(d.accuracy, 0.9);
+    s.completeness = fraction_within(d.completeness, kCompletenessMm);
+    const double precision = fraction_within(d.accuracy, kFscoreMm);
+    const double recall = fraction_within(d.completeness, kFscoreMm);
+    s.fscore = precision + recall > 0 ? 2 * precision * recall / (precision + recall) : 0;
+    return s;
+  }
+};
+
+Distances compare(const Mesh& mesh, const Mesh& truth, const SurfaceDistance& to_truth,
+                  unsigned seed) {
+  Distances d;
+  const SurfaceDistance to_mesh(mesh);
+  const std::vector<Vec3f> a = sample_surface(mesh, kSamplesPerMesh, seed);
+  const std::vector<Vec3f> b = sample_surface(truth, kSamplesPerMesh, seed + 1);
+  d.accuracy.resize(a.size());
+  d.completeness.resize(b.size());
+  for (std::size_t i = 0; i < a.size(); ++i) d.accuracy[i] = 1000 * to_truth(a[i]);
+  for (std::size_t i = 0; i < b.size(); ++i) d.completeness[i] = 1000 * to_mesh(b[i]);
+  return d;
+}
+
+// Error heat-map: the mesh seen by `camera`, each triangle coloured by the mean distance of its
+// vertices to the truth (0 .. kHeatMaxMm, JET), shaded by its slant to the camera.
+cv::Mat heat_map(const Camera& camera, const Mesh& mesh, const std::vector<double>& vertex_mm,
+                 double scale, const std::string& label) {
+  const int w = std::max(1, static_cast<int>(std::lround(camera.intrinsics.width * scale)));
+  const int h = std::max(1, static_cast<int>(std::lround(camera.intrinsics.height * scale)));
+  cv::Mat image(h, w, CV_8UC3, cv::Scalar(40, 40, 40));
+  struct Face {
+    double depth;
+    std::array<cv::Point, 3> px;
+    cv::Scalar colour;
+  };
+  std::vector<Face> faces;
+  const Eigen::Vector3d eye = camera.center();
+  for (const Tri& t : mesh.triangles) {
+    Face f;
+    bool ok = true;
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d p = mesh.positions[t[k]].cast<double>();
+      Eigen::Vector2d px;
+      if (!camera.project(p, &px)) {
+        ok = false;
+        break;
+      }
+      f.px[k] = cv::Point(static_cast<int>(std::lround(px.x() * scale - 0.5)),
+                          static_cast<int>(std::lround(px.y() * scale - 0.5)));
+      c += p / 3;
+    }
+    if (!ok) continue;
+    const Eigen::Vector3d a = mesh.positions[t[0]].cast<double>();
+    Eigen::Vector3d n = (mesh.positions[t[1]].cast<double>() - a)
+                            .cross(mesh.positions[t[2]].cast<double>() - a);
+    const Eigen::Vector3d view = (eye - c).normalized();
+    if (!(n.norm() > 0) || n.dot(view) <= 0) continue;  // back face
+    const double shade = 0.35 + 0.65 * n.normalized().dot(view);
+    const double err = (vertex_mm[t[0]] + vertex_mm[t[1]] + vertex_mm[t[2]]) / 3;
+    cv::Mat level(1, 1, CV_8UC1, cv::Scalar(std::clamp(255 * err / kHeatMaxMm, 0.0, 255.0)));
+    cv::Mat rgb;
+    cv::applyColorMap(level, rgb, cv::COLORMAP_JET);
+    const cv::Vec3b v = rgb.at<cv::Vec3b>(0, 0);
+    f.colour = cv::Scalar(v[0] * shade, v[1] * shade, v[2] * shade);
+    f.depth = (c - eye).norm();
+    faces.push_back(f);
+  }
+  std::sort(faces.begin(), faces.end(), [](const Face& a, const Face& b) { return a.depth > b.depth; });
+  for (const Face& f : faces) cv::fillConvexPoly(image, f.px.data(), 3, f.colour, cv::LINE_8);
+  const double font = std::max(0.35, 0.45 * w / 480.0);
+  const cv::Point at{6, static_cast<int>(6 + 22 * font)};
+  cv::putText(image, label, at, cv::FONT_HERSHEY_SIMPLEX, font, {0, 0, 0}, 3, cv::LINE_AA);
+  cv::putText(image, label, at, cv::FONT_HERSHEY_SIMPLEX, font, {255, 255, 255}, 1, cv::LINE_AA);
+  return image;
+}
+
+// Colour bar 0 .. kHeatMaxMm under the pictures.
+cv::Mat colour_bar(int width) {
+  cv::Mat ramp(1, width, CV_8UC1);
+  for (int x = 0; x < width; ++x) ramp.at<std::uint8_t>(0, x) = static_cast<std::uint8_t>(255 * x / std::max(1, width - 1));
+  cv::Mat bar;
+  cv::applyColorMap(ramp, bar, cv::COLORMAP_JET);
+  cv::resize(bar, bar, {width, 14}, 0, 0, cv::INTER_NEAREST);
+  cv::Mat out(34, width, CV_8UC3, cv::Scalar(255, 255, 255));
+  bar.copyTo(out(cv::Rect(0, 0, width, 14)));
+  cv::putText(out, "0 mm", {4, 30}, cv::FONT_HERSHEY_SIMPLEX, 0.4, {0, 0, 0}, 1, cv::LINE_AA);
+  const std::string hi = fmt::format(">= {:.0f} mm", kHeatMaxMm);
+  cv::putText(out, hi, {width - 8 * static_cast<int>(hi.size()) - 4, 30}, cv::FONT_HERSHEY_SIMPLEX,
+              0.4, {0, 0, 0}, 1, cv::LINE_AA);
+  return out;
+}
+
+struct FrameJob {
+  std::string take;
+  int frame = 0;
+  bool has_mesh = false, has_hull = false;
+  Distances mesh, hull;
+};
+
+struct Variant {
+  std::string dir;  // "reconstruct" or "reconstruct_oracle"
+  InputKind input;
+};
+
+}  // namespace
+
+StageReport validate_reconstruct(const ValidationContext& ctx) {
+  const Session& session = ctx.session;
+  StageReport report;
+  report.stage = "reconstruct";
+  const fs::path truth_dir = session.ground_truth_dir() / "meshes";
+  std::vector<Variant> variants;
+  std::error_code ec;
+  for (const Variant& v : {Variant{"reconstruct", InputKind::kPipeline},
+                           Variant{"reconstruct_oracle", InputKind::kOracle}}) {
+    if (!subfolders(session.root() / v.dir).empty()) variants.push_back(v);
+  }
+  if (variants.empty()) {
+    report.summary = "Skipped: no reconstruct/ output.";
+    return report;
+  }
+  const std::vector<std::string> takes = subfolders(truth_dir);
+  if (takes.empty()) {
+    report.summary = "Skipped: no ground_truth/meshes/ (not a synthetic session).";
+    return report;
+  }
+  report.present = true;
+  const fs::path calibration = fs::exists(session.ground_truth_dir() / "calibration" / "cameras.txt", ec)
+                                   ? session.ground_truth_dir() / "calibration"
+                                   : session.calibration_dir();
+  const std::vector<Camera> cameras = read_colmap_model(calibration);
+
+  auto add = [&](const std::string& name, double value, InputKind input, const std::string& meaning) {
+    report.metrics.push_back({name, value, input, meaning});
+  };
+  std::string details;
+  std::vector<std::string> summaries;
+  for (const Variant& variant : variants) {
+    const fs::path out_dir = session.root() / variant.dir;
+    std::vector<FrameJob> jobs;
+    for (const std::string& take : takes) {
+      for (int f : sample_frames(frame_count(truth_dir / take, ".ply"), ctx.options.frames_per_take)) {
+        FrameJob job;
+        job.take = take;
+        job.frame = f;
+        jobs.push_back(std::move(job));
+      }
+    }
+    tbb::parallel_for(std::size_t{0}, jobs.size(), [&](std::size_t i) {
+      FrameJob& job = jobs[i];
+      const std::string file = frame_name(job.frame) + ".ply";
+      const fs::path mesh_path = out_dir / job.take / file;
+      const fs::path hull_path = out_dir / "visual_hull" / job.take / file;
+      job.has_mesh = fs::exists(mesh_path);
+      job.has_hull = fs::exists(hull_path);
+      if (!job.has_mesh && !job.has_hull) return;
+      const Mesh truth = read_ply(truth_dir / job.take / file);
+      const SurfaceDistance to_truth(truth);
+      const unsigned seed = static_cast<unsigned>(1000 * i + 17);
+      if (job.has_mesh) job.mesh = compare(read_ply(mesh_path), truth, to_truth, seed);
+      if (job.has_hull) job.hull = compare(read_ply(hull_path), truth, to_truth, seed);
+    });
+
+    // Pool the samples: overall and per take, for the final mesh and the hull.
+    Distances all_mesh, all_hull;
+    std::map<std::string, Distances> take_mesh, take_hull;
+    int missing = 0, compared = 0;
+    for (const FrameJob& job : jobs) {
+      if (!job.has_mesh) ++missing;
+      if (job.has_mesh) {
+        ++compared;
+        all_mesh.append(job.mesh);
+        take_mesh[job.take].append(job.mesh);
+      }
+      if (job.has_hull) {
+        all_hull.append(job.hull);
+        take_hull[job.take].append(job.hull);
+      }
+    }
+    const InputKind in = variant.input;
+    auto add_scores = [&](const std::string& prefix, const Distances& d, const std::string& what) {
+      const Scores s = Scores::of(d);
+      add(prefix + "accuracy_median_mm", s.accuracy_median, in,
+          "median distance of " + what + " surface samples to the true surface [mm]");
+      add(prefix + "accuracy_p90_mm", s.accuracy_p90, in,
+          "90th percentile of that distance [mm]");
+      add(prefix + "completeness_10mm", s.completeness, in,
+          "fraction of true-surface samples within 10 mm of " + what);
+      add(prefix + "fscore_5mm", s.fscore, in, "F-score of precision and recall at 5 mm (" + what + ")");
+      return s;
+    };
+    if (compared > 0) add_scores("", all_mesh, "the final mesh");
+    if (!all_hull.accuracy.empty()) add_scores("visual_hull.", all_hull, "the visual hull");
+    add("frames_compared", compared, in, "sampled frames with a reconstructed mesh");
+    add("frames_missing", missing, in,
+        "sampled ground-truth frames without a reconstructed mesh (skipped or not run)");
+
+    std::string table = fmt::format(
+        "{} ({}): per take, final mesh / visual hull\n\n| take | frames | accuracy median mm | "
+        "accuracy p90 mm | completeness 10 mm | F-score 5 mm |\n|---|---:|---:|---:|---:|---:|\n",
+        variant.dir, in == InputKind::kOracle ? "oracle" : "pipeline");
+    for (const std::string& take : takes) {
+      if (!take_mesh.count(take)) continue;
+      const Scores m = add_scores(take + ".", take_mesh[take], "the final mesh");
+      Scores h;
+      if (take_hull.count(take)) h = add_scores("visual_hull." + take + ".", take_hull[take], "the visual hull");
+      int frames = 0;
+      for (const FrameJob& j : jobs) frames += j.take == take && j.has_mesh;
+      table += fmt::format("| {} | {} | {:.2f} / {:.2f} | {:.2f} / {:.2f} | {:.3f} / {:.3f} | {:.3f} / {:.3f} |\n",
+                           take, frames, m.accuracy_median, h.accuracy_median, m.accuracy_p90,
+                           h.accuracy_p90, m.completeness, h.completeness, m.fscore, h.fscore);
+    }
+    details += table + "\n";
+
+    // Time: every per-frame record of the stage (not only the sampled frames).
+    double seconds = 0;
+    int timed = 0, skipped = 0;
+    std::map<std::string, double> steps;
+    for (const std::string& take : subfolders(out_dir)) {
+      if (!fs::is_directory(out_dir / take, ec)) continue;
+      for (const auto& e : fs::directory_iterator(out_dir / take)) {
+        if (e.path().extension() != ".json") continue;
+        nlohmann::json j;
+        try {
+          j = nlohmann::json::parse(read_file(e.path()));
+        } catch (const std::exception&) {
+          continue;
+        }
+        if (!j.is_object() || !j.contains("seconds_total")) continue;
+        if (!j.value("reconstructed", false)) {
+          ++skipped;
+          continue;
+        }
+        seconds += j["seconds_total"].get<double>();
+        ++timed;
+        for (const auto& [step, s] : j["seconds"].items()) steps[step] += s.get<double>();
+      }
+    }
+    if (timed > 0) {
+      add("seconds_per_frame", seconds / timed, in,
+          "mean time to reconstruct one frame (sum of its steps, from the per-frame records) [s]");
+      std::string st = "| step | mean seconds per frame |\n|---|---:|\n";
+      for (const auto& [step, s] : steps) st += fmt::format("| {} | {:.3f} |\n", step, s / timed);
+      details += fmt::format("{}: time per step over {} frame(s)\n\n{}\n", variant.dir, timed, st);
+    }
+    try {
+      const nlohmann::json run = nlohmann::json::parse(read_file(out_dir / "report.json")).at("run");
+      add("wall_seconds_per_frame", run.at("seconds_per_frame").get<double>(), in,
+          "wall-clock time of the last run divided by its frames (frames run in parallel) [s]");
+    } catch (const std::exception&) {
+    }
+    add("frames_skipped", skipped, in, "frames the stage reported as not reconstructable");
+    summaries.push_back(fmt::format("{}: {} sampled frame(s) compared, {} missing", variant.dir,
+                                    compared, missing));
+
+    // Heat-maps: one frame per take (the middle sampled one), final mesh and hull side by side.
+    if (variant.input != InputKind::kPipeline || cameras.empty()) continue;
+    const int pictured = std::min<int>(ctx.options.picture_takes, static_cast<int>(takes.size()));
+    for (int t = 0; t < pictured; ++t) {
+      const std::string& take = takes[t];
+      std::vector<const FrameJob*> frames;
+      for (const FrameJob& j : jobs) {
+        if (j.take == take && j.has_mesh) frames.push_back(&j);
+      }
+      if (frames.empty()) continue;
+      const FrameJob& job = *frames[frames.size() / 2];
+      const std::string file = frame_name(job.frame) + ".ply";
+      const Mesh truth = read_ply(truth_dir / take / file);
+      const SurfaceDistance to_truth(truth);
+      std::vector<std::pair<std::string, Mesh>> meshes = {{"final mesh", read_ply(out_dir / take / file)}};
+      if (job.has_hull) meshes.push_back({"visual hull", read_ply(out_dir / "visual_hull" / take / file)});
+      const int count = std::min<int>(ctx.options.picture_cameras, static_cast<int>(cameras.size()));
+      const double scale =
+          std::min(1.0, double(ctx.options.panel_width) / cameras[0].intrinsics.width) *
+          (cameras[0].intrinsics.width < 400 ? 1.5 : 1.0);
+      std::vector<cv::Mat> rows;
+      for (int i = 0; i < count; ++i) {
+        const Camera& camera = cameras[static_cast<std::size_t>(i) * cameras.size() / count];
+        std::vector<cv::Mat> panels;
+        for (const auto& [name, mesh] : meshes) {
+          std::vector<double> mm(mesh.positions.size());
+          tbb::parallel_for(std::size_t{0}, mm.size(),
+                            [&](std::size_t v) { mm[v] = 1000 * to_truth(mesh.positions[v]); });
+          panels.push_back(heat_map(camera, mesh, mm, scale,
+                                    fmt::format("{} {} frame {}: {}", take, camera.name, job.frame, name)));
+        }
+        cv::Mat row;
+        cv::hconcat(panels, row);
+        rows.push_back(row);
+      }
+      rows.push_back(colour_bar(rows[0].cols));
+      cv::Mat picture;
+      cv::vconcat(rows, picture);
+      Picture p;
+      p.file = fmt::format("reconstruct_error_{}.png", take);
+      write_image_atomic(ctx.reports_dir / p.file, picture);
+      p.caption = fmt::format(
+          "reconstruct, take {} frame {}: distance to the true surface (blue 0, red >= {:.0f} mm) "
+          "of the final mesh (left) and of the visual hull (right)",
+          take, job.frame, kHeatMaxMm);
+      report.pictures.push_back(p);
+    }
+  }
+  report.summary = fmt::format(
+      "Sampled {} frame(s) per take, {} surface samples per mesh; {}.", ctx.options.frames_per_take,
+      kSamplesPerMesh, fmt::format("{}", fmt::join(summaries, "; ")));
+  report.details = details;
+  return report;
+}
+
+}  // namespace fourd::validate

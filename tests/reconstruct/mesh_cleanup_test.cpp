@@ -1,0 +1,97 @@
+// Remeshing a fine isosurface down to a vertex count: quadric decimation (OpenMesh) and the
+// isotropic remeshing after it keep the surface closed and on the shape.
+#include <gtest/gtest.h>
+
+#include <map>
+
+#include "pipeline/core/isosurface.h"
+#include "stages/reconstruct/decimate.h"
+#include "stages/reconstruct/mesh_cleanup.h"
+
+namespace fourd::reconstruct {
+namespace {
+
+constexpr double kRadius = 0.3;
+
+// A sphere of radius kRadius as the isosurface of its distance field on an 8 mm grid
+// (over 10k vertices, a fine isosurface to bring down to a few thousand).
+Mesh fine_sphere() {
+  ScalarGrid g;
+  g.voxel = 0.008;
+  g.nx = g.ny = g.nz = 86;
+  g.origin = Eigen::Vector3d::Constant(-0.34);
+  g.values.resize(static_cast<std::size_t>(g.nx) * g.ny * g.nz);
+  for (int z = 0; z < g.nz; ++z)
+    for (int y = 0; y < g.ny; ++y)
+      for (int x = 0; x < g.nx; ++x)
+        g.values[g.index(x, y, z)] = static_cast<float>(g.point(x, y, z).norm() - kRadius);
+  return extract_isosurface(g, 0.0f);
+}
+
+std::size_t boundary_edges(const Mesh& mesh) {
+  std::map<std::pair<int, int>, int> edges;
+  for (const Tri& t : mesh.triangles) {
+    for (int k = 0; k < 3; ++k) {
+      int a = t[k], b = t[(k + 1) % 3];
+      edges[{std::min(a, b), std::max(a, b)}] += 1;
+    }
+  }
+  std::size_t n = 0;
+  for (const auto& [e, count] : edges) n += count != 2;
+  return n;
+}
+
+double max_radial_error(const Mesh& mesh) {
+  double worst = 0;
+  for (const Vec3f& p : mesh.positions) worst = std::max(worst, std::abs(p.cast<double>().norm() - kRadius));
+  return worst;
+}
+
+// Closed mesh: V - E + F = 2 for a sphere.
+int euler(const Mesh& mesh) {
+  std::map<std::pair<int, int>, int> edges;
+  for (const Tri& t : mesh.triangles)
+    for (int k = 0; k < 3; ++k) edges[{std::min(t[k], t[(k + 1) % 3]), std::max(t[k], t[(k + 1) % 3])}];
+  return static_cast<int>(mesh.positions.size()) - static_cast<int>(edges.size()) +
+         static_cast<int>(mesh.triangles.size());
+}
+
+TEST(MeshCleanup, DecimateReachesTheTargetAndStaysOnTheSphere) {
+  const Mesh fine = fine_sphere();
+  ASSERT_GT(fine.positions.size(), 10000u);
+  const Mesh coarse = decimate(fine, 3000);
+  EXPECT_LE(coarse.positions.size(), 3000u);
+  EXPECT_GE(coarse.positions.size(), 2900u);
+  EXPECT_EQ(boundary_edges(coarse), 0u);
+  EXPECT_EQ(euler(coarse), 2);
+  EXPECT_LT(max_radial_error(coarse), 0.002);
+}
+
+TEST(MeshCleanup, DecimateLeavesASmallMeshAlone) {
+  const Mesh fine = fine_sphere();
+  const Mesh same = decimate(fine, static_cast<int>(fine.positions.size()) + 10);
+  EXPECT_EQ(same.positions.size(), fine.positions.size());
+  EXPECT_EQ(same.triangles.size(), fine.triangles.size());
+}
+
+TEST(MeshCleanup, RemeshGivesAboutTheTargetCountOnTheShape) {
+  const Mesh fine = fine_sphere();
+  RemeshOptions options;
+  options.target_vertices = 2000;
+  options.iterations = 2;
+  const Mesh out = remesh(fine, options);
+  // Isotropic remeshing splits and collapses around the target edge length: about the count.
+  EXPECT_NEAR(static_cast<double>(out.positions.size()), 2000.0, 600.0);
+  EXPECT_EQ(boundary_edges(out), 0u);
+  EXPECT_EQ(euler(out), 2);
+  EXPECT_LT(max_radial_error(out), 0.003);
+
+  options.iterations = 0;  // decimation only
+  const Mesh quick = remesh(fine, options);
+  EXPECT_LE(quick.positions.size(), 2000u);
+  EXPECT_GE(quick.positions.size(), 1900u);
+  EXPECT_LT(max_radial_error(quick), 0.002);
+}
+
+}  // namespace
+}  // namespace fourd::reconstruct
