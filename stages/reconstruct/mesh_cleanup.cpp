@@ -3,7 +3,10 @@
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/border.h>
 #include <CGAL/Polygon_mesh_processing/measure.h>
+#include <CGAL/Polygon_mesh_processing/manifoldness.h>
 #include <CGAL/Polygon_mesh_processing/remesh.h>
+#include <CGAL/Polygon_mesh_processing/repair.h>
+#include <CGAL/Polygon_mesh_processing/repair_degeneracies.h>
 #include <CGAL/Polygon_mesh_processing/triangulate_hole.h>
 #include <CGAL/Surface_mesh.h>
 #include <fmt/format.h>
@@ -127,6 +130,15 @@ Mesh remesh(const Mesh& mesh, const RemeshOptions& options) {
   Mesh coarse = decimate(mesh, decimated_vertices);
   if (options.iterations <= 0) return coarse;
   SurfaceMesh sm = to_surface_mesh(coarse);
+  // Decimation can leave pinched vertices, needles and caps; CGAL's tangential relaxation
+  // dereferences the fan of every vertex and crashes on such a mesh, so repair it first.
+  PMP::remove_degenerate_faces(sm);
+  PMP::duplicate_non_manifold_vertices(sm);
+  PMP::remove_isolated_vertices(sm);
+  sm.collect_garbage();
+  if (!CGAL::is_valid_polygon_mesh(sm) || sm.number_of_faces() == 0) {
+    throw SolverError("remeshing: the decimated surface is not a valid polygon mesh");
+  }
   // Equilateral triangles of side L cover the area A with 2V faces: A = 2V (sqrt(3)/4) L^2.
   const double area = PMP::area(sm);
   const double edge = std::sqrt(2.0 * area / (std::sqrt(3.0) * target));

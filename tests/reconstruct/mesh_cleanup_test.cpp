@@ -7,6 +7,7 @@
 #include "pipeline/core/isosurface.h"
 #include "stages/reconstruct/decimate.h"
 #include "stages/reconstruct/mesh_cleanup.h"
+#include "tests/test_shapes.h"
 
 namespace fourd::reconstruct {
 namespace {
@@ -91,6 +92,48 @@ TEST(MeshCleanup, RemeshGivesAboutTheTargetCountOnTheShape) {
   EXPECT_LE(quick.positions.size(), 2000u);
   EXPECT_GE(quick.positions.size(), 1900u);
   EXPECT_LT(max_radial_error(quick), 0.002);
+}
+
+// Two spheres pinched together at one shared vertex, plus a stray vertex and a zero-area
+// triangle: what a fused surface can look like where two limbs touch. Remeshing must return a
+// valid mesh (or refuse with an Error), never crash.
+TEST(MeshCleanup, RemeshSurvivesPinchedAndDegenerateInput) {
+  Mesh a = test::make_icosphere(4, 0.2f), b = test::make_icosphere(4, 0.2f);
+  const int n = static_cast<int>(a.positions.size());
+  for (Vec3f& p : b.positions) p += Vec3f(0.4f, 0, 0);
+  // b's vertex nearest to a's rightmost vertex becomes that vertex: one pinched vertex.
+  int a_right = 0, b_left = 0;
+  for (int i = 0; i < n; ++i) {
+    if (a.positions[i].x() > a.positions[a_right].x()) a_right = i;
+    if (b.positions[i].x() < b.positions[b_left].x()) b_left = i;
+  }
+  Mesh m = a;
+  m.positions.insert(m.positions.end(), b.positions.begin(), b.positions.end());
+  for (Tri t : b.triangles) {
+    for (int& v : t) v = v == b_left ? a_right : v + n;
+    m.triangles.push_back(t);
+  }
+  m.positions.push_back(Vec3f(5, 5, 5));  // stray
+  const int d = static_cast<int>(m.positions.size());
+  m.positions.push_back(Vec3f(1, 1, 1));
+  m.positions.push_back(Vec3f(1, 1, 1));
+  m.positions.push_back(Vec3f(1, 1, 1));
+  m.triangles.push_back({d, d + 1, d + 2});  // zero area
+  RemeshOptions options;
+  options.target_vertices = 1500;
+  Mesh out;
+  try {
+    out = remesh(m, options);
+  } catch (const Error&) {
+    return;  // refusing with a clear error is acceptable; crashing is not
+  }
+  ASSERT_FALSE(out.triangles.empty());
+  for (const Tri& t : out.triangles) {
+    for (int v : t) {
+      ASSERT_GE(v, 0);
+      ASSERT_LT(v, static_cast<int>(out.positions.size()));
+    }
+  }
 }
 
 }  // namespace
