@@ -1,0 +1,577 @@
+#include "runtime/character.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cassert>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include "pipeline/core/error.h"
+#include "runtime/root_math.h"
+
+namespace fourd {
+
+namespace {
+
+constexpr int kMaxSpaces = 64;
+// Normalised-time tolerance for reaching a path's exit or end.
+constexpr double kSpanTolerance = 1e-9;
+// A frame time within this many ticks of a tick counts as that tick (rounding of summed dt).
+constexpr double kTickTolerance = 1e-6;
+
+double smoothstep(double x) {
+  x = std::clamp(x, 0.0, 1.0);
+  return x * x * (3 - 2 * x);
+}
+
+double wrap01(double t) {
+  const double w = t - std::floor(t);
+  return w >= 1.0 ? 0.0 : w;
+}
+
+// a * b for double-precision world poses and a float local delta.
+RootTransform compose(const RootTransform& a, const RootPose& b) {
+  const double c = std::cos(a.heading), s = std::sin(a.heading);
+  return {a.x + c * b.x - s * b.y, a.y + s * b.x + c * b.y, a.heading + b.heading};
+}
+
+// Root motion of `space` from t over dn of normalised time at weights w (a cyclic space may
+// run past t = 1; a one-shot clamps at 1), in the root frame at t.
+RootPose root_delta(const MotionSpace& space, double t, double dn, std::span<const float> w) {
+  if (dn <= 0) return {};
+  const RootPose a = space_root(space, t, w);
+  const RootPose b = space_root(space, space.cyclic ? t + dn : std::min(1.0, t + dn), w);
+  return root_relative(a, b);
+}
+
+// out[0 .. n) += sum_k c_k src_k[0 .. n): the cross-fade's second space.
+template <int K>
+void accumulate_k(const BlendSources& s, std::size_t n, float* __restrict out) {
+  const float* src[K];
+  float c[K];
+  for (int k = 0; k < K; ++k) {
+    src[k] = s.sources[k];
+    c[k] = s.coefficients[k];
+  }
+#pragma GCC ivdep
+  for (std::size_t i = 0; i < n; ++i) {
+    float acc = out[i];
+    for (int k = 0; k < K; ++k) acc += c[k] * src[k][i];
+    out[i] = acc;
+  }
+}
+
+// Any number of sources (up to kMaxBlendSources), six at a time.
+void accumulate(const BlendSources& all, std::size_t n, float* out) {
+  for (int first = 0; first < all.count; first += 6) {
+    BlendSources s;
+    s.count = std::min(6, all.count - first);
+    for (int k = 0; k < s.count; ++k) {
+      s.sources[k] = all.sources[first + k];
+      s.coefficients[k] = all.coefficients[first + k];
+    }
+    switch (s.count) {
+      case 1:
+        accumulate_k<1>(s, n, out);
+        break;
+      case 2:
+        accumulate_k<2>(s, n, out);
+        break;
+      case 3:
+        accumulate_k<3>(s, n, out);
+        break;
+      case 4:
+        accumulate_k<4>(s, n, out);
+        break;
+      case 5:
+        accumulate_k<5>(s, n, out);
+        break;
+      default:
+        accumulate_k<6>(s, n, out);
+        break;
+    }
+  }
+}
+
+// The same sources read from the normals array.
+void to_normals(const GraphSpace& space, const BlendSources& positions, BlendSources* normals) {
+  *normals = positions;
+  for (int k = 0; k < positions.count; ++k) normals->sources[k] = space.normals_for(positions.sources[k]);
+}
+
+void scale(BlendSources* s, float f) {
+  for (int k = 0; k < s->count; ++k) s->coefficients[k] *= f;
+}
+
+void normalize_planes(BlendedFrame* f) {
+  float* __restrict x = f->data.data();
+  float* __restrict y = x + f->plane_stride;
+  float* __restrict z = y + f->plane_stride;
+  const int n = f->num_vertices;
+#pragma GCC ivdep
+  for (int v = 0; v < n; ++v) {
+    const float len2 = x[v] * x[v] + y[v] * y[v] + z[v] * z[v];
+    // Branch-free so the loop vectorises; a zero normal stays zero.
+    const float inv = 1.0f / std::sqrt(len2 + 1e-30f);
+    x[v] *= inv;
+    y[v] *= inv;
+    z[v] *= inv;
+  }
+}
+
+std::span<const float> weights_span(const GraphSpace& space, const std::array<float, 3>& w) {
+  return {w.data(), static_cast<std::size_t>(space.num_inputs())};
+}
+
+}  // namespace
+
+const char* request_result_name(RequestResult r) {
+  switch (r) {
+    case RequestResult::kAccepted:
+      return "accepted";
+    case RequestResult::kRouted:
+      return "routed";
+    case RequestResult::kNoRoute:
+      return "no_route";
+    case RequestResult::kUnknownSpace:
+      return "unknown_space";
+  }
+  return "?";
+}
+
+const char* play_phase_name(PlayPhase p) {
+  switch (p) {
+    case PlayPhase::kFree:
+      return "free";
+    case PlayPhase::kSource:
+      return "source";
+    case PlayPhase::kTarget:
+      return "target";
+  }
+  return "?";
+}
+
+void CharacterOptions::check() const {
+  if (!(tick_seconds > 0 && tick_seconds <= 0.1)) {
+    throw ConfigError(fmt::format("tick_seconds {} must lie in (0, 0.1]", tick_seconds));
+  }
+  if (!(crossfade_seconds >= 0 && crossfade_seconds <= 5)) {
+    throw ConfigError(fmt::format("crossfade_seconds {} must lie in [0, 5]", crossfade_seconds));
+  }
+  if (!(one_shot_exit_t >= 0 && one_shot_exit_t <= 1)) {
+    throw ConfigError(fmt::format("one_shot_exit_t {} must lie in [0, 1]", one_shot_exit_t));
+  }
+  if (!(max_turn_rate >= 0 && std::isfinite(max_turn_rate))) {
+    throw ConfigError(fmt::format("max_turn_rate {} must be finite and >= 0", max_turn_rate));
+  }
+}
+
+Character::Character(const MotionGraph& graph, const TransitionOptions& transitions,
+                     const CharacterOptions& options)
+    : graph_(graph), transitions_(transitions), options_(options) {
+  options_.check();
+  transitions_.check();
+  num_spaces_ = static_cast<int>(graph_.spaces.size());
+  if (num_spaces_ < 1 || num_spaces_ > kMaxSpaces) {
+    throw InputError(
+        fmt::format("character: {} motion spaces (1 to {} supported)", num_spaces_, kMaxSpaces));
+  }
+  // Shortest routes once, so requests allocate nothing.
+  next_hop_.fill(-1);
+  for (int a = 0; a < num_spaces_; ++a) {
+    for (int b = 0; b < num_spaces_; ++b) {
+      const std::vector<int> route = shortest_route(graph_, a, b);
+      if (!route.empty()) next_hop_[a * kMaxSpaces + b] = route.front();
+    }
+  }
+  const BlendSpace& blend = graph_.spaces.front().motion.blend;
+  frame_.positions = make_blended_frame(blend);
+  frame_.normals = make_blended_frame(blend);
+  reset(0, graph_.spaces.front().parameter_min());
+}
+
+double Character::clamp_p(int space, double p, bool* clamped) const {
+  const GraphSpace& s = graph_.spaces[space];
+  const double lo = s.parameter_min(), hi = s.parameter_max();
+  *clamped = !(p >= lo && p <= hi);
+  return std::isfinite(p) ? std::clamp(p, lo, hi) : lo;
+}
+
+RequestStatus Character::reset(int space, double p, double t, const RootTransform& root) {
+  RequestStatus status;
+  if (space < 0 || space >= num_spaces_) {
+    status.result = RequestResult::kUnknownSpace;
+    return status;
+  }
+  state_ = CharacterState{};
+  state_.space = space;
+  state_.t = std::clamp(std::isfinite(t) ? t : 0.0, 0.0, 1.0);
+  state_.p = state_.p_target = status.applied = clamp_p(space, p, &status.clamped);
+  state_.root = root;
+  tick_ = 0;
+  prepared_tick_ = -1;
+  hook_tick_ = -1;
+  time_ = 0;
+  request_ = parameter_ = turn_ = Request{};
+  events_ = StepEvents{};
+  record_ = TransitionRecord{};
+  clamps_ = status.clamped ? 1 : 0;
+  shown_ = state_;
+  evaluate(shown_);
+  return status;
+}
+
+std::int64_t Character::due_tick_now() const {
+  if (hook_tick_ >= 0) return hook_tick_;
+  return static_cast<std::int64_t>(std::ceil(time_ / options_.tick_seconds - kTickTolerance));
+}
+
+RequestStatus Character::set_parameters(double p) {
+  // The space the parameter refers to: the one a pending or running transition goes to.
+  int space = state_.space;
+  if (request_.pending) {
+    space = request_.space;
+  } else if (state_.phase == PlayPhase::kSource) {
+    space = state_.path.end.space;
+  }
+  RequestStatus status;
+  status.applied = clamp_p(space, p, &status.clamped);
+  if (status.clamped) ++clamps_;
+  parameter_ = {true, space, status.applied, -1, due_tick_now()};
+  return status;
+}
+
+RequestStatus Character::request_motion(int space, double p, double t) {
+  RequestStatus status;
+  if (space < 0 || space >= num_spaces_) {
+    status.result = RequestResult::kUnknownSpace;
+    return status;
+  }
+  status.applied = clamp_p(space, p, &status.clamped);
+  if (status.clamped) ++clamps_;
+  const int from = state_.phase == PlayPhase::kSource ? state_.path.end.space : state_.space;
+  if (space != from || t >= 0) {
+    if (graph_.find_edge(from, space) >= 0) {
+      status.hops = 1;
+    } else {
+      // Count the hops of the shortest route.
+      int at = from;
+      while (at != space && at >= 0 && status.hops <= kMaxSpaces) {
+        at = next_hop_[at * kMaxSpaces + space];
+        ++status.hops;
+      }
+      if (at != space) {
+        status.result = RequestResult::kNoRoute;
+        status.hops = 0;
+        return status;
+      }
+      status.result = RequestResult::kRouted;
+    }
+  }
+  request_ = {true, space, status.applied, std::isfinite(t) && t >= 0 ? std::min(t, 1.0) : -1.0,
+              due_tick_now()};
+  return status;
+}
+
+RequestStatus Character::request_motion(std::string_view space, double p, double t) {
+  for (int k = 0; k < num_spaces_; ++k) {
+    if (graph_.spaces[k].name() == space) return request_motion(k, p, t);
+  }
+  RequestStatus status;
+  status.result = RequestResult::kUnknownSpace;
+  return status;
+}
+
+void Character::set_turn_rate(double rad_per_second) {
+  const double m = options_.max_turn_rate;
+  const double r = std::isfinite(rad_per_second) ? std::clamp(rad_per_second, -m, m) : 0.0;
+  turn_ = {true, -1, r, -1, due_tick_now()};
+}
+
+bool Character::start_transition(int target, double p, double t) {
+  CharacterState& s = state_;
+  if (target == s.space && t < 0) {
+    // A parameter change in the current space; a path not yet switched is abandoned.
+    if (s.phase == PlayPhase::kSource) s.phase = PlayPhase::kFree;
+    s.p_target = p;
+    s.goal_space = -1;
+    return true;
+  }
+  int edge = graph_.find_edge(s.space, target);
+  int hop = target;
+  double hop_p = p, hop_t = t;
+  if (edge < 0) {
+    hop = next_hop_[s.space * kMaxSpaces + target];
+    if (hop < 0) return false;
+    edge = graph_.find_edge(s.space, hop);
+    if (edge < 0) return false;
+    const GraphSpace& h = graph_.spaces[hop];
+    hop_p = 0.5 * (h.parameter_min() + h.parameter_max());
+    hop_t = -1;
+    s.goal_space = target;
+    s.goal_p = p;
+    s.goal_t = t;
+  } else {
+    s.goal_space = -1;
+  }
+  const MotionState from{s.space, s.t, s.p};
+  const TransitionTarget to{hop, hop_p, hop_t};
+  const auto start = std::chrono::steady_clock::now();
+  const TransitionPath path = search_.search(graph_, edge, from, to, transitions_);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  ++events_.searches;
+  events_.search_seconds += seconds;
+  if (!path.found) {
+    ++events_.refused;
+    s.goal_space = -1;
+    return false;
+  }
+  // Leaving a cyclic space for a one-shot one: come back to it afterwards, at the parameter
+  // it was asked to play (not the one the path ramps through).
+  if (graph_.spaces[s.space].cyclic() && !graph_.spaces[hop].cyclic()) {
+    s.return_space = s.space;
+    s.return_p = s.phase == PlayPhase::kSource ? s.return_p : s.p_target;
+  }
+  s.phase = PlayPhase::kSource;
+  s.path = path;
+  s.played = 0;
+  s.p_target = path.end.p;
+  record_ = TransitionRecord{};
+  record_.from = s.space;
+  record_.to = hop;
+  record_.request_time = s.time;
+  record_.search_seconds = seconds;
+  record_.path = path;
+  return true;
+}
+
+void Character::plan_next() {
+  CharacterState& s = state_;
+  if (s.phase != PlayPhase::kFree || s.fading) return;
+  const GraphSpace& space = graph_.spaces[s.space];
+  const bool ready = space.cyclic() || s.t >= options_.one_shot_exit_t;
+  if (!ready) return;
+  if (s.goal_space >= 0) {
+    if (s.goal_space == s.space && s.goal_t < 0) {
+      s.p_target = s.goal_p;
+      s.goal_space = -1;
+      return;
+    }
+    const int goal = s.goal_space;
+    if (!start_transition(goal, s.goal_p, s.goal_t)) s.goal_space = -1;
+    return;
+  }
+  if (!space.cyclic() && s.return_space >= 0) {
+    const int back = s.return_space;
+    s.return_space = -1;
+    start_transition(back, s.return_p, -1);
+  }
+}
+
+void Character::prepare_tick() {
+  if (prepared_tick_ == tick_) return;
+  prepared_tick_ = tick_;
+  if (hook_) {
+    hook_tick_ = tick_;
+    hook_->on_tick(*this, state_);
+    hook_tick_ = -1;
+  }
+  if (turn_.pending && turn_.due_tick <= tick_) {
+    state_.turn_rate = turn_.p;
+    turn_.pending = false;
+  }
+  if (request_.pending && request_.due_tick <= tick_ && !state_.fading) {
+    request_.pending = false;
+    if (!start_transition(request_.space, request_.p, request_.t)) ++events_.refused;
+  }
+  if (parameter_.pending && parameter_.due_tick <= tick_ && !request_.pending) {
+    parameter_.pending = false;
+    // p_target belongs to the space being played, or to the one a path goes to.
+    const int refers =
+        state_.phase == PlayPhase::kSource ? state_.path.end.space : state_.space;
+    if (parameter_.space == refers) state_.p_target = parameter_.p;
+    if (state_.goal_space == parameter_.space) state_.goal_p = parameter_.p;
+  }
+  if (!request_.pending) plan_next();
+}
+
+void Character::advance(CharacterState* s, double seconds, bool commit) {
+  for (int iteration = 0; iteration < 64; ++iteration) {
+    // Boundaries first: a path's exit (switch) and end (arrival) may need no time at all.
+    if (s->phase == PlayPhase::kSource && s->played >= s->path.source_span - kSpanTolerance) {
+      const TransitionPath& path = s->path;
+      if (options_.crossfade_seconds > 0) {
+        s->fading = true;
+        s->fade_space = s->space;
+        s->fade_t = s->t;
+        s->fade_p = s->p;
+        s->fade_elapsed = 0;
+      }
+      s->space = path.entry.space;
+      s->t = path.entry.t;
+      s->p = path.entry.p;
+      s->phase = PlayPhase::kTarget;
+      s->played = 0;
+      if (commit) {
+        ++events_.switches;
+        record_.switch_time = s->time;
+      }
+      continue;
+    }
+    if (s->phase == PlayPhase::kTarget && s->played >= s->path.target_span - kSpanTolerance) {
+      s->phase = PlayPhase::kFree;
+      s->p = s->path.end.p;
+      if (commit) {
+        ++events_.arrivals;
+        record_.arrive_time = s->time;
+      }
+      continue;
+    }
+    if (!(seconds > 1e-12)) break;
+
+    const GraphSpace& space = graph_.spaces[s->space];
+    const MotionSpace& motion = space.motion;
+    std::array<float, 3> w{};
+    space_weights(space, s->p, &w);
+    const std::span<const float> ws = weights_span(space, w);
+    const double pace = blended_seconds_per_t(motion, s->t, ws);  // [s per unit t]
+    double limit = std::numeric_limits<double>::infinity();
+    if (s->phase == PlayPhase::kSource) limit = s->path.source_span - s->played;
+    if (s->phase == PlayPhase::kTarget) limit = s->path.target_span - s->played;
+    bool idle_rest = false;  // a one-shot space that has ended: the rest of the time is still
+    if (!space.cyclic() && 1 - s->t < limit) {
+      limit = 1 - s->t;
+      idle_rest = s->phase == PlayPhase::kFree;
+    }
+    limit = std::max(0.0, limit);
+    double dn = pace > 0 ? seconds / pace : limit;
+    double used = seconds;
+    if (dn > limit) {
+      dn = limit;
+      if (!idle_rest) used = std::min(seconds, dn * pace);
+    }
+
+    // Root motion of this segment (weights at its start), the parameter at its end.
+    RootPose delta = root_delta(motion, s->t, dn, ws);
+    if (s->phase == PlayPhase::kSource || s->phase == PlayPhase::kTarget) {
+      const bool src = s->phase == PlayPhase::kSource;
+      const double span = src ? s->path.source_span : s->path.target_span;
+      const double a = src ? s->path.start.p : s->path.entry.p;
+      const double b = src ? s->path.exit.p : s->path.end.p;
+      const double f = span > 0 ? std::clamp((s->played + dn) / span, 0.0, 1.0) : 1.0;
+      s->p = a + f * (b - a);
+    } else {
+      const double rate = space.parameter_max() - space.parameter_min();  // per unit t
+      const double step = rate * dn;
+      s->p = s->p_target > s->p ? std::min(s->p_target, s->p + step)
+                                : std::max(s->p_target, s->p - step);
+    }
+
+    if (s->fading) {
+      const GraphSpace& fs = graph_.spaces[s->fade_space];
+      std::array<float, 3> wf{};
+      space_weights(fs, s->fade_p, &wf);
+      const std::span<const float> wfs = weights_span(fs, wf);
+      const double pace_f = blended_seconds_per_t(fs.motion, s->fade_t, wfs);
+      double dnf = pace_f > 0 ? used / pace_f : 0.0;
+      if (!fs.cyclic()) dnf = std::min(dnf, 1 - s->fade_t);
+      const RootPose delta_f = root_delta(fs.motion, s->fade_t, dnf, wfs);
+      s->fade_t = fs.cyclic() ? wrap01(s->fade_t + dnf) : std::min(1.0, s->fade_t + dnf);
+      const double beta =
+          smoothstep((s->fade_elapsed + 0.5 * used) / options_.crossfade_seconds);
+      delta = root_lerp(delta_f, delta, static_cast<float>(beta));
+      s->fade_elapsed += used;
+      if (s->fade_elapsed >= options_.crossfade_seconds) s->fading = false;
+    }
+
+    // Steering: half the turn before the segment's translation, half after (midpoint rule).
+    const double turn = s->turn_rate * used;
+    s->root.heading += 0.5 * turn;
+    s->root = compose(s->root, delta);
+    s->root.heading += 0.5 * turn;
+
+    s->t = space.cyclic() ? wrap01(s->t + dn) : std::min(1.0, s->t + dn);
+    s->played += dn;
+    s->time += used;
+    seconds -= used;
+  }
+}
+
+const CharacterFrame& Character::step(double dt) {
+  events_ = StepEvents{};
+  if (std::isfinite(dt) && dt > 0) time_ += dt;
+  const double h = options_.tick_seconds;
+  const auto target_tick = static_cast<std::int64_t>(std::floor(time_ / h + kTickTolerance));
+  while (tick_ < target_tick) {
+    prepare_tick();
+    advance(&state_, h, true);
+    ++tick_;
+    // Pin the committed clock to the tick grid (no drift from summing h).
+    state_.time = static_cast<double>(tick_) * h;
+  }
+  shown_ = state_;
+  const double rest = time_ - static_cast<double>(tick_) * h;
+  if (rest > kTickTolerance * h) {
+    prepare_tick();
+    shown_ = state_;
+    advance(&shown_, rest, false);
+  }
+  evaluate(shown_);
+  return frame_;
+}
+
+void Character::evaluate(const CharacterState& s) {
+  const GraphSpace& space = graph_.spaces[s.space];
+  std::array<float, 3> w{};
+  space_weights(space, s.p, &w);
+  BlendSources a, an;
+  hybrid_blend_sources(space.motion.blend, s.t, weights_span(space, w), &a);
+  const double beta =
+      s.fading && options_.crossfade_seconds > 0 ? smoothstep(s.fade_elapsed / options_.crossfade_seconds) : 1.0;
+  const std::size_t n = space.motion.blend.frame_stride();
+  if (beta < 1) scale(&a, static_cast<float>(beta));
+  to_normals(space, a, &an);
+  weighted_sum(a, n, frame_.positions.data.data());
+  weighted_sum(an, n, frame_.normals.data.data());
+  if (beta < 1) {
+    const GraphSpace& fs = graph_.spaces[s.fade_space];
+    std::array<float, 3> wf{};
+    space_weights(fs, s.fade_p, &wf);
+    BlendSources b, bn;
+    hybrid_blend_sources(fs.motion.blend, s.fade_t, weights_span(fs, wf), &b);
+    scale(&b, static_cast<float>(1 - beta));
+    to_normals(fs, b, &bn);
+    accumulate(b, n, frame_.positions.data.data());
+    accumulate(bn, n, frame_.normals.data.data());
+  }
+  if (options_.normalize_normals) normalize_planes(&frame_.normals);
+  frame_.root = s.root;
+  frame_.fade_weight = static_cast<float>(beta);
+}
+
+void character_world_positions(const CharacterFrame& frame, std::vector<Vec3f>* out) {
+  const BlendedFrame& f = frame.positions;
+  out->resize(f.num_vertices);
+  const double c = std::cos(frame.root.heading), s = std::sin(frame.root.heading);
+  for (int v = 0; v < f.num_vertices; ++v) {
+    const double x = f.x()[v], y = f.y()[v];
+    (*out)[v] = Vec3f(static_cast<float>(frame.root.x + c * x - s * y),
+                      static_cast<float>(frame.root.y + s * x + c * y), f.z()[v]);
+  }
+}
+
+void character_world_normals(const CharacterFrame& frame, std::vector<Vec3f>* out) {
+  const BlendedFrame& f = frame.normals;
+  out->resize(f.num_vertices);
+  const double c = std::cos(frame.root.heading), s = std::sin(frame.root.heading);
+  for (int v = 0; v < f.num_vertices; ++v) {
+    const double x = f.x()[v], y = f.y()[v];
+    (*out)[v] = Vec3f(static_cast<float>(c * x - s * y), static_cast<float>(s * x + c * y),
+                      f.z()[v]);
+  }
+}
+
+}  // namespace fourd
