@@ -49,6 +49,7 @@ void write_space(BinaryWriter& w, const GraphSpace& g) {
   w.write_vector(b.reference_weights);
   write_floats(w, b.frames);
   w.write_vector(b.cells);
+  w.write_vector(b.cell_arc_angles);
   write_floats(w, g.normals);
   w.write_vector(s.roots);
   w.write_vector(s.seconds);
@@ -81,6 +82,7 @@ GraphSpace read_space(BinaryReader& r) {
   b.reference_weights = r.read_vector<double>();
   b.frames = read_floats(r, "blend frames");
   b.cells = r.read_vector<std::array<int, 3>>();
+  b.cell_arc_angles = r.read_vector<double>();
   g.normals = read_floats(r, "normals");
   s.roots = r.read_vector<RootPose>();
   s.seconds = r.read_vector<float>();

@@ -20,7 +20,7 @@
 
 namespace fourd {
 
-inline constexpr std::uint32_t kAssetVersion = 1;
+inline constexpr std::uint32_t kAssetVersion = 2;  // 2: per-cell arc angles of the hybrid blend
 
 struct Asset {
   MotionGraph graph;

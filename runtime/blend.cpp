@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <numbers>
+#include <utility>
 
 #include "pipeline/core/error.h"
 
@@ -16,6 +18,10 @@ constexpr int kPadFloats = 16;
 
 // Tolerance for weights that should sum to 1 or be non-negative (they come from files).
 constexpr double kWeightTolerance = 1e-6;
+
+// Arc angles below this use the quadratic basis, the arc basis's limit (and its exact value to
+// double precision for such angles: the difference is O(theta^2) relative).
+constexpr double kMinArcAngle = 1e-6;
 
 // Projects w onto the simplex as the header describes; returns N values in `p`.
 void normalised_weights(std::span<const float> w, int n, std::array<double, 3>* p) {
@@ -92,7 +98,7 @@ void frame_position(const BlendSpace& space, double t, int* f, double* alpha) {
 }
 
 void add_source(BlendSources* out, const float* frame, double coefficient) {
-  if (coefficient <= 0) return;  // adding 0 * x changes nothing: skip the read
+  if (coefficient == 0) return;  // adding 0 * x changes nothing: skip the read
   assert(out->count < kMaxBlendSources);
   out->sources[out->count] = frame;
   out->coefficients[out->count] = static_cast<float>(coefficient);
@@ -111,8 +117,9 @@ void add_time_samples(const BlendSpace& space, std::span<const int> refs, std::s
 
 // out = sum of K scaled sources; K is a template parameter so the loop over sources unrolls
 // and the loop over floats vectorises (the sources never alias the output).
-template <int K>
-void weighted_sum_k(const BlendSources& s, std::size_t n, float* __restrict out) {
+template <int K, bool kAccumulate>
+inline __attribute__((always_inline)) void weighted_sum_body(const BlendSources& s, std::size_t n,
+                                                             float* __restrict out) {
   const float* src[K];
   float c[K];
   for (int k = 0; k < K; ++k) {
@@ -123,8 +130,50 @@ void weighted_sum_k(const BlendSources& s, std::size_t n, float* __restrict out)
   for (std::size_t i = 0; i < n; ++i) {
     float acc = c[0] * src[0][i];
     for (int k = 1; k < K; ++k) acc += c[k] * src[k][i];
-    out[i] = acc;
+    out[i] = kAccumulate ? out[i] + acc : acc;
   }
+}
+
+template <int K, bool kAccumulate>
+void weighted_sum_k(const BlendSources& s, std::size_t n, float* out) {
+  weighted_sum_body<K, kAccumulate>(s, n, out);
+}
+
+// The build targets baseline x86-64 (SSE2: 4 floats per instruction, one load per source and
+// vector). A blend of 12 sources is then bound by load and add throughput rather than memory
+// bandwidth, so on CPUs with AVX2 and FMA the same loop also runs compiled for them (8 floats
+// per instruction), chosen once at run time. Results may differ in the last bit between the
+// two (fused multiply-add rounds once).
+#if defined(__GNUC__) && defined(__x86_64__)
+#define FOURD_BLEND_AVX2 1
+template <int K, bool kAccumulate>
+__attribute__((target("avx2,fma"))) void weighted_sum_k_avx2(const BlendSources& s,
+                                                             std::size_t n, float* out) {
+  weighted_sum_body<K, kAccumulate>(s, n, out);
+}
+
+bool has_avx2_fma() {
+  static const bool yes = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+  }();
+  return yes;
+}
+#endif
+
+template <bool kAccumulate, int... K>
+void dispatch_weighted_sum(const BlendSources& s, std::size_t n, float* out,
+                           std::integer_sequence<int, K...>) {
+  assert(s.count >= 1 && s.count <= kMaxBlendSources &&
+         "a blend reads 1 to kMaxBlendSources frames");
+#ifdef FOURD_BLEND_AVX2
+  if (has_avx2_fma()) {
+    ((s.count == K + 1 ? (weighted_sum_k_avx2<K + 1, kAccumulate>(s, n, out), true) : false) ||
+     ...);
+    return;
+  }
+#endif
+  ((s.count == K + 1 ? (weighted_sum_k<K + 1, kAccumulate>(s, n, out), true) : false) || ...);
 }
 
 }  // namespace
@@ -187,6 +236,19 @@ void BlendSpace::check() const {
       const double* b = rw + cell[1] * 3;
       const double* cc = rw + cell[2] * 3;
       measure += 0.5 * std::abs((b[1] - a[1]) * (cc[2] - a[2]) - (cc[1] - a[1]) * (b[2] - a[2]));
+    }
+  }
+  if (!cell_arc_angles.empty()) {
+    if (cell_arc_angles.size() != cells.size()) {
+      throw InputError(fmt::format("blend space: {} arc angles for {} cells",
+                                   cell_arc_angles.size(), cells.size()));
+    }
+    for (std::size_t c = 0; c < cells.size(); ++c) {
+      const double a = cell_arc_angles[c];
+      if (!(a >= 0 && a <= std::numbers::pi) || (num_inputs != 2 && a != 0)) {
+        throw InputError(fmt::format("blend space: cell {} has arc angle {} (0 to pi, segments only)",
+                                     c, a));
+      }
     }
   }
   const double expected = num_inputs == 1 ? 0.0 : num_inputs == 2 ? 1.0 : 0.5;
@@ -254,17 +316,91 @@ void copy_positions(const BlendedFrame& frame, std::vector<Vec3f>* positions) {
   for (int v = 0; v < frame.num_vertices; ++v) (*positions)[v] = frame.position(v);
 }
 
+int find_reference(const BlendSpace& space, std::span<const double> w) {
+  const int n = space.num_inputs;
+  const int r = space.num_references();
+  const double* rw = space.reference_weights.data();
+  for (int j = 0; j < r; ++j) {
+    bool same = true;
+    for (int i = 0; i < n && same; ++i) same = std::abs(rw[j * n + i] - w[i]) <= 1e-9;
+    if (same) return j;
+  }
+  return -1;
+}
+
+std::array<int, 3> cell_midpoints(const BlendSpace& space, const std::array<int, 3>& cell) {
+  std::array<int, 3> mids{-1, -1, -1};
+  const int n = space.num_inputs;
+  if (n < 2) return mids;
+  const double* rw = space.reference_weights.data();
+  auto mid = [&](int a, int b) {
+    std::array<double, 3> m{};
+    for (int i = 0; i < n; ++i) m[i] = 0.5 * (rw[a * n + i] + rw[b * n + i]);
+    return find_reference(space, std::span<const double>(m.data(), n));
+  };
+  if (n == 2) {
+    mids[0] = mid(cell[0], cell[1]);
+  } else {
+    for (int k = 0; k < 3; ++k) mids[k] = mid(cell[(k + 1) % 3], cell[(k + 2) % 3]);
+  }
+  return mids;
+}
+
+void cell_shape_functions(const BlendSpace& space, const std::array<int, 3>& cell,
+                          const std::array<int, 3>& midpoints, const std::array<double, 3>& lambda,
+                          double arc_angle, CellNodes* out) {
+  const int corners = space.num_inputs;
+  std::array<double, 3> gc{}, gm{};
+  // P2 Lagrange basis: corner k: lambda_k (2 lambda_k - 1); midpoint opposite corner k (the
+  // edge between the two others; for a segment the only edge): 4 lambda_i lambda_j.
+  for (int k = 0; k < corners; ++k) gc[k] = corners == 1 ? 1.0 : lambda[k] * (2 * lambda[k] - 1);
+  if (corners == 2 && midpoints[0] >= 0 && arc_angle > kMinArcAngle) {
+    // Trigonometric Lagrange basis on nodes 0, theta / 2, theta (blend.h).
+    const double theta = arc_angle, phi = theta * lambda[1];
+    const double q = std::sin(0.25 * theta), h = std::sin(0.5 * theta);
+    const double s0 = std::sin(0.5 * phi), s1 = std::sin(0.5 * phi - 0.25 * theta),
+                 s2 = std::sin(0.5 * phi - 0.5 * theta);
+    gc[0] = s1 * s2 / (q * h);
+    gm[0] = -s0 * s2 / (q * q);
+    gc[1] = s0 * s1 / (h * q);
+  } else if (corners == 2) {
+    gm[0] = 4 * lambda[0] * lambda[1];
+  } else if (corners == 3) {
+    for (int k = 0; k < 3; ++k) gm[k] = 4 * lambda[(k + 1) % 3] * lambda[(k + 2) % 3];
+  }
+  // A missing midpoint node: the edge is linear, its value the mean of the two ends.
+  const int edges = corners == 3 ? 3 : corners - 1;
+  for (int k = 0; k < edges; ++k) {
+    if (midpoints[k] >= 0) continue;
+    const int a = corners == 2 ? 0 : (k + 1) % 3, b = corners == 2 ? 1 : (k + 2) % 3;
+    gc[a] += 0.5 * gm[k];
+    gc[b] += 0.5 * gm[k];
+    gm[k] = 0;
+  }
+  out->count = 0;
+  auto add = [&](int reference, double g) {
+    if (g == 0) return;
+    out->references[out->count] = reference;
+    out->g[out->count] = g;
+    ++out->count;
+  };
+  for (int k = 0; k < corners; ++k) add(cell[k], gc[k]);
+  for (int k = 0; k < edges; ++k) add(midpoints[k], gm[k]);
+}
+
 void hybrid_blend_sources(const BlendSpace& space, double t, std::span<const float> w,
                           BlendSources* out) {
-  std::array<double, 3> p{}, g{};
+  std::array<double, 3> p{}, lambda{};
   normalised_weights(w, space.num_inputs, &p);
-  const auto& cell = space.cells[locate_cell(space, p, &g)];
+  CellNodes nodes;
+  const int c = locate_cell(space, p, &lambda);
+  cell_shape_functions(space, space.cells[c], cell_midpoints(space, space.cells[c]), lambda,
+                       space.cell_arc_angle(c), &nodes);
   int f = 0;
   double alpha = 0;
   frame_position(space, t, &f, &alpha);
-  const int corners = space.num_inputs;
-  add_time_samples(space, std::span<const int>(cell.data(), corners),
-                   std::span<const double>(g.data(), corners), f, alpha, out);
+  add_time_samples(space, std::span<const int>(nodes.references.data(), nodes.count),
+                   std::span<const double>(nodes.g.data(), nodes.count), f, alpha, out);
 }
 
 void linear_blend_sources(const BlendSpace& space, double t, std::span<const float> w,
@@ -280,22 +416,11 @@ void linear_blend_sources(const BlendSpace& space, double t, std::span<const flo
 }
 
 void weighted_sum(const BlendSources& s, std::size_t n, float* out) {
-  switch (s.count) {
-    case 1:
-      return weighted_sum_k<1>(s, n, out);
-    case 2:
-      return weighted_sum_k<2>(s, n, out);
-    case 3:
-      return weighted_sum_k<3>(s, n, out);
-    case 4:
-      return weighted_sum_k<4>(s, n, out);
-    case 5:
-      return weighted_sum_k<5>(s, n, out);
-    case 6:
-      return weighted_sum_k<6>(s, n, out);
-    default:
-      assert(false && "a blend reads 1 to kMaxBlendSources frames");
-  }
+  dispatch_weighted_sum<false>(s, n, out, std::make_integer_sequence<int, kMaxBlendSources>{});
+}
+
+void accumulate_weighted_sum(const BlendSources& s, std::size_t n, float* out) {
+  dispatch_weighted_sum<true>(s, n, out, std::make_integer_sequence<int, kMaxBlendSources>{});
 }
 
 void blend_hybrid(const BlendSpace& space, double t, std::span<const float> w, BlendedFrame* out) {

@@ -3,18 +3,45 @@
 //
 // A motion space holds N time-aligned input sequences M_i(t) of one topology (N = 1, 2 or 3)
 // and, for hybrid non-linear blending, extra reference sequences M_j(t) = M_NL(t, w_j) at
-// intermediate weights w_j, precomputed offline (stages/motionspace/hybrid_build.h). The
-// references tile the weight simplex with cells: segments of the weight line for N = 2,
-// triangles of the barycentric weight triangle for N = 3. At run time
+// intermediate weights w_j, precomputed offline (stages/motionspace/hybrid_build.h). Cells tile
+// the weight simplex: segments of the weight line for N = 2, triangles of the barycentric
+// weight triangle for N = 3. At run time
 //
 //   M(t, w) = sum_j g(w, w_j) M_j(t)                                                    (Eq. 1)
 //
-// with g the barycentric coordinates of w inside the cell that contains it (zero for every
-// other reference). The paper writes each reference as M_L(t, w_j) + D_NL(t, w_j); since M_L
-// is linear in w and sum_j g_j w_j = w, Eq. 1 equals M_L(t, w) + sum_j g_j D_NL(t, w_j). We
+// where g(., w_j) is zero for every reference outside the cell that contains w and, inside it,
+// the QUADRATIC (P2 Lagrange) shape function of node j of that cell. A cell's nodes are its
+// corners and the midpoints of its edges: a segment with corners a, b and midpoint m is a
+// 3-node P2 segment, g = (1 - s)(1 - 2s), 4 s (1 - s), s (2s - 1) at local coordinate s; a
+// triangle is a 6-node P2 triangle, g = lambda_i (2 lambda_i - 1) at corner i and
+// 4 lambda_i lambda_k at the midpoint of edge (i, k), with lambda the barycentric coordinates
+// of w in the cell. The midpoint nodes are found by weight: the reference whose w_j is exactly
+// the midpoint of the edge's ends. An edge without such a reference is interpolated linearly
+// (its missing midpoint counts as the mean of its ends: g_m / 2 goes to each end), so a cell
+// with no midpoint reference is the paper's linear interpolation of its corners and a space
+// with only its inputs is the linear blend. Quadratic cells follow the arc that a rotation-
+// dominated displacement D_NL(w) draws against its chord (on a segment with D = 0 at both ends,
+// D(s) ~ 4 s (1 - s) D(1/2)); interpolating it linearly leaves the arc's sagitta as error.
+// Neighbouring cells share an edge's three nodes, so the blend stays continuous in w.
+//
+// Arc segments (2 inputs). A quadratic follows the arc's sagitta but not its uneven pace along
+// the chord (a point turning at a constant rate moves fast across the chord's middle and slowly
+// near its ends): the leftover, odd about the midpoint, is cubic in the rotation angle and
+// dominates the error of a strongly rotating blend. A segment may therefore carry an arc angle
+// theta (cell_arc_angles, set offline from the node meshes): its g is then the trigonometric
+// Lagrange basis on nodes phi = 0, theta / 2, theta at phi = theta s,
+//   g_j(s) = prod_{k != j} sin((phi - phi_k) / 2) / sin((phi_j - phi_k) / 2),
+// which spans {1, cos phi, sin phi}: it reproduces exactly any vertex that turns by theta on a
+// circle, still sums to 1 and interpolates the three nodes, and tends to the quadratic basis as
+// theta -> 0 (theta = 0 is the quadratic). It is still Eq. 1 with one g per cell node.
+//
+// The paper writes each reference as M_L(t, w_j) + D_NL(t, w_j). The shape functions reproduce
+// linear functions (sum_j g_j = 1 and sum_j g_j w_j = w), so Eq. 1 equals
+// M_L(t, w) + sum_j g_j D_NL(t, w_j): the linear blend plus the interpolated displacement. We
 // store the reference meshes M_j themselves rather than D_NL: the result is identical, but an
-// evaluation reads only the cell's corners (2 or 3 frames per time sample) instead of the N
-// inputs plus the displacements. D_NL(t, w_j) is M_j(t) - M_L(t, w_j) whenever it is wanted.
+// evaluation reads only the cell's nodes (2..3 or 3..6 frames per time sample) instead of the
+// N inputs plus the displacements. D_NL(t, w_j) is M_j(t) - M_L(t, w_j) whenever it is wanted.
+// Some g_j are negative (a corner's g dips to -1/8 near its opposite nodes); that is expected.
 //
 // Data layout (struct of arrays, float): one frame of one reference is three planes x | y | z
 // of `plane_stride` floats each (the vertex count rounded up to 16, so every plane starts on a
@@ -63,10 +90,17 @@ struct BlendSpace {
   std::vector<double> reference_weights;  // #R x N
   // Positions of every reference at every frame: [reference][frame][x | y | z planes].
   AlignedFloats frames;
-  // Cells tiling the weight simplex, as reference indices: N = 1: {0, -1, -1}; N = 2: weight
-  // segments {a, b, -1}; N = 3: weight triangles {a, b, c}. Cells meet edge to edge, so the
-  // blend is continuous in w.
+  // Cells tiling the weight simplex, as the reference indices of their corners: N = 1:
+  // {0, -1, -1}; N = 2: weight segments {a, b, -1}; N = 3: weight triangles {a, b, c}. Cells
+  // meet edge to edge (no reference inside an edge except its midpoint node), so the blend is
+  // continuous in w. The midpoint nodes are not listed: see cell_midpoints.
   std::vector<std::array<int, 3>> cells;
+  // Per cell, the arc angle theta [rad] of a 2-input segment's shape functions (see above), in
+  // [0, pi]; 0: quadratic. Empty: every cell quadratic. Must be 0 for triangles.
+  std::vector<double> cell_arc_angles;
+  double cell_arc_angle(int cell) const {
+    return cell_arc_angles.empty() ? 0.0 : cell_arc_angles[cell];
+  }
 
   int num_references() const {
     return num_inputs == 0 ? 0 : static_cast<int>(reference_weights.size()) / num_inputs;
@@ -109,7 +143,7 @@ void copy_positions(const BlendedFrame& frame, std::vector<Vec3f>* positions);
 
 // What one evaluation reads: up to kMaxBlendSources frames and their coefficients; the output
 // is sum_k coefficients[k] * sources[k] over 3 * plane_stride floats.
-inline constexpr int kMaxBlendSources = 6;  // 3 cell corners x 2 time samples
+inline constexpr int kMaxBlendSources = 12;  // 6 nodes of a P2 triangle x 2 time samples
 struct BlendSources {
   int count = 0;
   std::array<const float*, kMaxBlendSources> sources{};
@@ -129,6 +163,28 @@ void linear_blend_sources(const BlendSpace& space, double t, std::span<const flo
 
 // out[0 .. n) = sum_k coefficients[k] * sources[k][0 .. n): the memory-bound kernel.
 void weighted_sum(const BlendSources& sources, std::size_t n, float* out);
+// out[0 .. n) += sum_k coefficients[k] * sources[k][0 .. n) (e.g. a cross-fade's second blend).
+void accumulate_weighted_sum(const BlendSources& sources, std::size_t n, float* out);
+
+// The node layout of one cell. midpoints[k] is the reference at the midpoint of the edge
+// opposite corner k (triangles: edges (1, 2), (2, 0), (0, 1)); segments use midpoints[0] for
+// edge (0, 1). -1 where no reference sits at the midpoint (that edge is linear).
+std::array<int, 3> cell_midpoints(const BlendSpace& space, const std::array<int, 3>& cell);
+// The reference whose weights equal `w` (N values, to 1e-9), or -1.
+int find_reference(const BlendSpace& space, std::span<const double> w);
+
+// The references and the shape functions g of Eq. 1 inside one cell at barycentric
+// coordinates `lambda` (N values used; they sum to 1): corners first, then the midpoint nodes
+// present; entries with g = 0 are left out (count: at most 6). `arc_angle` is the cell's
+// (BlendSpace::cell_arc_angle): for a segment with its midpoint, the arc basis; else ignored.
+struct CellNodes {
+  int count = 0;
+  std::array<int, 6> references{};
+  std::array<double, 6> g{};
+};
+void cell_shape_functions(const BlendSpace& space, const std::array<int, 3>& cell,
+                          const std::array<int, 3>& midpoints, const std::array<double, 3>& lambda,
+                          double arc_angle, CellNodes* out);
 
 // Hybrid non-linear blend at continuous time t in [0, 1] and weights w (Eq. 1). No allocation.
 void blend_hybrid(const BlendSpace& space, double t, std::span<const float> w, BlendedFrame* out);

@@ -46,55 +46,6 @@ RootPose root_delta(const MotionSpace& space, double t, double dn, std::span<con
   return root_relative(a, b);
 }
 
-// out[0 .. n) += sum_k c_k src_k[0 .. n): the cross-fade's second space.
-template <int K>
-void accumulate_k(const BlendSources& s, std::size_t n, float* __restrict out) {
-  const float* src[K];
-  float c[K];
-  for (int k = 0; k < K; ++k) {
-    src[k] = s.sources[k];
-    c[k] = s.coefficients[k];
-  }
-#pragma GCC ivdep
-  for (std::size_t i = 0; i < n; ++i) {
-    float acc = out[i];
-    for (int k = 0; k < K; ++k) acc += c[k] * src[k][i];
-    out[i] = acc;
-  }
-}
-
-// Any number of sources (up to kMaxBlendSources), six at a time.
-void accumulate(const BlendSources& all, std::size_t n, float* out) {
-  for (int first = 0; first < all.count; first += 6) {
-    BlendSources s;
-    s.count = std::min(6, all.count - first);
-    for (int k = 0; k < s.count; ++k) {
-      s.sources[k] = all.sources[first + k];
-      s.coefficients[k] = all.coefficients[first + k];
-    }
-    switch (s.count) {
-      case 1:
-        accumulate_k<1>(s, n, out);
-        break;
-      case 2:
-        accumulate_k<2>(s, n, out);
-        break;
-      case 3:
-        accumulate_k<3>(s, n, out);
-        break;
-      case 4:
-        accumulate_k<4>(s, n, out);
-        break;
-      case 5:
-        accumulate_k<5>(s, n, out);
-        break;
-      default:
-        accumulate_k<6>(s, n, out);
-        break;
-    }
-  }
-}
-
 // The same sources read from the normals array.
 void to_normals(const GraphSpace& space, const BlendSources& positions, BlendSources* normals) {
   *normals = positions;
@@ -544,8 +495,8 @@ void Character::evaluate(const CharacterState& s) {
     hybrid_blend_sources(fs.motion.blend, s.fade_t, weights_span(fs, wf), &b);
     scale(&b, static_cast<float>(1 - beta));
     to_normals(fs, b, &bn);
-    accumulate(b, n, frame_.positions.data.data());
-    accumulate(bn, n, frame_.normals.data.data());
+    accumulate_weighted_sum(b, n, frame_.positions.data.data());
+    accumulate_weighted_sum(bn, n, frame_.normals.data.data());
   }
   if (options_.normalize_normals) normalize_planes(&frame_.normals);
   frame_.root = s.root;

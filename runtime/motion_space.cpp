@@ -15,7 +15,12 @@ namespace fourd {
 namespace {
 
 constexpr FileMagic kMotionSpaceMagic("FOURDMS");
-constexpr std::uint32_t kMotionSpaceVersion = 1;
+// Version 2: a reference at the midpoint of a cell edge is that cell's quadratic midpoint node
+// (runtime/blend.h), and the cells' arc angles follow the cells. A version 1 file (no arc
+// angles; its cells have no midpoint references, so every cell is linear) still loads and
+// blends exactly as it did.
+constexpr std::uint32_t kMotionSpaceVersion = 2;
+constexpr std::uint32_t kMotionSpaceVersionLinearCells = 1;
 
 // Weights projected onto the simplex exactly as runtime/blend.h does.
 std::array<double, 3> simplex_weights(std::span<const float> w, int n) {
@@ -169,6 +174,7 @@ void save_motion_space(const std::filesystem::path& path, const MotionSpace& spa
   w.write_vector(b.reference_weights);
   w.write_span(std::span<const float>(b.frames.data(), b.frames.size()));
   w.write_vector(b.cells);
+  w.write_vector(b.cell_arc_angles);
   w.write_vector(space.roots);
   w.write_vector(space.seconds);
   const ParameterMap& m = space.parameter_map;
@@ -181,7 +187,9 @@ void save_motion_space(const std::filesystem::path& path, const MotionSpace& spa
 }
 
 MotionSpace load_motion_space(const std::filesystem::path& path) {
-  BinaryReader r = BinaryReader::open(path, kMotionSpaceMagic, {kMotionSpaceVersion});
+  BinaryReader r = BinaryReader::open(path, kMotionSpaceMagic,
+                                      {kMotionSpaceVersionLinearCells, kMotionSpaceVersion});
+  const bool has_arcs = r.version() >= kMotionSpaceVersion;
   MotionSpace s;
   s.name = r.read_string();
   s.cyclic = r.read<std::uint8_t>() != 0;
@@ -207,6 +215,7 @@ MotionSpace load_motion_space(const std::filesystem::path& path) {
   b.frames.resize(floats);
   r.read_bytes(b.frames.data(), floats * sizeof(float));
   b.cells = r.read_vector<std::array<int, 3>>();
+  if (has_arcs) b.cell_arc_angles = r.read_vector<double>();
   s.roots = r.read_vector<RootPose>();
   s.seconds = r.read_vector<float>();
   ParameterMap& m = s.parameter_map;

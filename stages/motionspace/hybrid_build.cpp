@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <numbers>
 #include <map>
 #include <vector>
 
@@ -23,27 +24,42 @@ struct Cell {
   std::array<int, 3> corners{-1, -1, -1};
   int depth = 0;
   double error = -1;  // max test error; < 0 while untested
+  // false only for the root before its first refinement: a linear cell without midpoints.
+  bool quadratic = true;
+  double arc = 0;  // arc angle of a 2-input segment's shape functions (runtime/blend.h)
 };
 
-// Barycentric positions of the test weights inside a cell.
-std::vector<std::array<double, 3>> test_points(int num_inputs) {
-  if (num_inputs == 2) return {{0.75, 0.25, 0}, {0.5, 0.5, 0}, {0.25, 0.75, 0}};
-  const double third = 1.0 / 3, sixth = 1.0 / 6;
-  return {{0, 0.5, 0.5},
-          {0.5, 0, 0.5},
-          {0.5, 0.5, 0},
-          {third, third, third},
-          {2 * third, sixth, sixth},
-          {sixth, 2 * third, sixth},
-          {sixth, sixth, 2 * third}};
+// Barycentric positions of the test weights inside a cell. A quadratic cell's nodes (corners
+// and edge midpoints) are exact, so the tests sit between them, where it errs most: on a
+// segment at its quarter points (the P2 error, a cubic vanishing at 0, 1/2 and 1, peaks at
+// 0.21 and 0.79); in a triangle at the quarter points of its edges, its centroid and half way
+// from each corner to the opposite edge's midpoint. The quarter points are where a split puts
+// the new references, so their solves are not wasted. A linear cell (the root, at first) is
+// also tested at its edge midpoints, where it errs most and where its references would go.
+std::vector<std::array<double, 3>> test_points(int num_inputs, bool quadratic) {
+  std::vector<std::array<double, 3>> points;
+  if (num_inputs == 2) {
+    points = {{0.75, 0.25, 0}, {0.25, 0.75, 0}};
+    if (!quadratic) points.push_back({0.5, 0.5, 0});
+    return points;
+  }
+  const double third = 1.0 / 3;
+  points = {{0.75, 0.25, 0},   {0.25, 0.75, 0},   {0, 0.75, 0.25},      {0, 0.25, 0.75},
+            {0.25, 0, 0.75},   {0.75, 0, 0.25},   {third, third, third}, {0.5, 0.25, 0.25},
+            {0.25, 0.5, 0.25}, {0.25, 0.25, 0.5}};
+  if (!quadratic) points.insert(points.end(), {{0, 0.5, 0.5}, {0.5, 0, 0.5}, {0.5, 0.5, 0}});
+  return points;
 }
 
 // The working state of the bisection: the leaf cells and where every edge midpoint went.
 class Refinement {
  public:
+  // The root starts linear (the inputs alone: no reference); its first refinement gives it its
+  // edge midpoints, which makes it quadratic, and later ones bisect.
   explicit Refinement(BlendSpace* space) : space_(space), references_(space->num_references()) {
     Cell root;
     root.corners = space->cells.front();
+    root.quadratic = false;
     cells_.push_back(root);
   }
 
@@ -54,11 +70,19 @@ class Refinement {
 
   // Splits cell i (with its neighbour across the refinement edge, for triangles).
   void refine(int i) {
+    if (!cells_[i].quadratic) {  // linear -> quadratic: the midpoints the bisection would add
+      add_midpoints(cells_[i]);
+      cells_[i].quadratic = true;
+      cells_[i].error = -1;
+      return;
+    }
     if (space_->num_inputs == 2) {
       const Cell c = cells_[i];
       const int m = midpoint(c.corners[0], c.corners[1]);
       cells_[i] = Cell{{c.corners[0], m, -1}, c.depth + 1};
       cells_.push_back(Cell{{m, c.corners[1], -1}, c.depth + 1});
+      add_midpoints(cells_[i]);
+      add_midpoints(cells_.back());
       return;
     }
     // Newest-vertex bisection: the neighbour across the refinement edge must share it as its
@@ -89,7 +113,14 @@ class Refinement {
   // Writes the leaf cells into the space.
   void store_cells() const {
     space_->cells.clear();
-    for (const Cell& c : cells_) space_->cells.push_back(c.corners);
+    space_->cell_arc_angles.clear();
+    bool any_arc = false;
+    for (const Cell& c : cells_) {
+      space_->cells.push_back(c.corners);
+      space_->cell_arc_angles.push_back(c.arc);
+      any_arc = any_arc || c.arc != 0;
+    }
+    if (!any_arc) space_->cell_arc_angles.clear();
   }
 
  private:
@@ -129,6 +160,19 @@ class Refinement {
     const int m = midpoint(c.corners[1], c.corners[2]);
     cells_[i] = Cell{{m, c.corners[0], c.corners[1]}, c.depth + 1};
     cells_.push_back(Cell{{m, c.corners[2], c.corners[0]}, c.depth + 1});
+    add_midpoints(cells_[i]);
+    add_midpoints(cells_.back());
+  }
+
+  // Every leaf cell is quadratic: its edges' midpoint references (the nodes the runtime's
+  // cell_midpoints finds by weight), created on first use.
+  void add_midpoints(const Cell& c) {
+    const int n = space_->num_inputs;
+    if (n == 2) {
+      midpoint(c.corners[0], c.corners[1]);
+    } else if (n == 3) {
+      for (int k = 0; k < 3; ++k) midpoint(c.corners[k], c.corners[(k + 1) % 3]);
+    }
   }
 
   BlendSpace* space_;
@@ -163,20 +207,53 @@ void store_frame(const Eigen::Matrix3Xd& x, int reference, int f, BlendSpace* sp
   }
 }
 
-// Largest vertex distance between x and sum_k g_k * frame(corners[k], f).
+// Largest vertex distance between x and the runtime's blend inside `cell` at barycentric
+// coordinates g (Eq. 1 with the cell's quadratic shape functions), at frame f.
 double max_distance(const Eigen::Matrix3Xd& x, const BlendSpace& space,
-                    const std::array<int, 3>& corners, const std::array<double, 3>& g, int f) {
+                    const std::array<int, 3>& corners, const std::array<double, 3>& g, double arc,
+                    int f) {
   const std::size_t stride = space.plane_stride;
+  CellNodes nodes;
+  cell_shape_functions(space, corners, cell_midpoints(space, corners), g, arc, &nodes);
   Eigen::Matrix3Xd blend = Eigen::Matrix3Xd::Zero(3, space.num_vertices);
-  for (int k = 0; k < space.num_inputs; ++k) {
-    if (g[k] == 0) continue;
-    const float* p = space.frame(corners[k], f);
+  for (int k = 0; k < nodes.count; ++k) {
+    const float* p = space.frame(nodes.references[k], f);
     for (int v = 0; v < space.num_vertices; ++v) {
-      blend.col(v) += g[k] * Eigen::Vector3d(p[v], p[stride + v], p[2 * stride + v]);
+      blend.col(v) += nodes.g[k] * Eigen::Vector3d(p[v], p[stride + v], p[2 * stride + v]);
     }
   }
   return (x - blend).colwise().norm().maxCoeff();
 }
+
+}  // namespace
+
+double segment_arc_angle(const BlendSpace& space, int a, int m, int b) {
+  if (m < 0) return 0;
+  const std::size_t stride = space.plane_stride;
+  double num = 0, den = 0;
+  for (int f = 0; f < space.num_frames; ++f) {
+    const float* pa = space.frame(a, f);
+    const float* pm = space.frame(m, f);
+    const float* pb = space.frame(b, f);
+    for (int v = 0; v < space.num_vertices; ++v) {
+      auto at = [&](const float* p) {
+        return Eigen::Vector3d(p[v], p[stride + v], p[2 * stride + v]);
+      };
+      const Eigen::Vector3d xa = at(pa), xm = at(pm), xb = at(pb);
+      const Eigen::Vector3d u = xa - xm, w = xb - xm;
+      const double sagitta2 = (xm - 0.5 * (xa + xb)).squaredNorm();
+      const double nu = u.norm(), nw = w.norm();
+      if (!(sagitta2 > 0) || !(nu > 0) || !(nw > 0)) continue;
+      // The inscribed angle at the midpoint node is pi - theta / 2.
+      const double inscribed = std::acos(std::clamp(u.dot(w) / (nu * nw), -1.0, 1.0));
+      num += sagitta2 * 2 * (std::numbers::pi - inscribed);
+      den += sagitta2;
+    }
+  }
+  return den > 0 ? std::clamp(num / den, 0.0, std::numbers::pi) : 0.0;
+}
+
+namespace {
 
 void check_space(const BlendSpace& space, const Eigen::Matrix3Xd& reference) {
   space.check();
@@ -205,7 +282,7 @@ TestSet collect_tests(const BlendSpace& space, const std::vector<Cell>& cells) {
   std::map<std::array<long long, 3>, int> weight_index;
   for (int c = 0; c < static_cast<int>(cells.size()); ++c) {
     if (cells[c].error >= 0) continue;
-    for (const auto& g : test_points(n)) {
+    for (const auto& g : test_points(n, cells[c].quadratic)) {
       std::vector<double> w(n, 0.0);
       for (int k = 0; k < n; ++k) {
         for (int i = 0; i < n; ++i) {
@@ -222,17 +299,12 @@ TestSet collect_tests(const BlendSpace& space, const std::vector<Cell>& cells) {
   return set;
 }
 
-// For every frame: the non-linear blend at the pending references (stored in the space), then
-// at the test weights, compared with the hybrid and the linear blend. Returns per test its
-// largest error over the frames; raises *linear_error to the linear blend's largest error.
-// Frames run in parallel; each writes only its own frames and its own row of errors.
-std::vector<double> solve_frames(const NonlinearBlendData& data, const TestSet& set,
-                                 const std::vector<int>& pending, const std::vector<Cell>& cells,
-                                 BlendSpace* space, double* linear_error) {
+// The non-linear blend at the pending references, stored in the space at every frame. Frames
+// run in parallel; each writes only its own frames.
+void solve_pending(const NonlinearBlendData& data, const std::vector<int>& pending,
+                   BlendSpace* space) {
+  if (pending.empty()) return;
   const int n = space->num_inputs;
-  const int nt = static_cast<int>(set.tests.size());
-  std::vector<double> errors(static_cast<std::size_t>(space->num_frames) * nt, 0.0);
-  std::vector<double> linear_errors(space->num_frames, 0.0);
   tbb::parallel_for(0, space->num_frames, [&](int f) {
     std::vector<Eigen::Matrix3Xd> inputs(n);
     for (int k = 0; k < n; ++k) inputs[k] = frame_positions(*space, k, f);
@@ -244,6 +316,28 @@ std::vector<double> solve_frames(const NonlinearBlendData& data, const TestSet& 
       nonlinear_blend_solve(data, prepared, w, &x);
       store_frame(x, r, f, space);
     }
+  });
+}
+
+// For every frame: the non-linear blend at the test weights, compared with the hybrid (for
+// each of its cell's candidate arc angles) and the linear blend. Returns per test and candidate
+// its largest error over the frames; raises *linear_error to the linear blend's largest error.
+// Frames run in parallel; each writes only its own row of errors.
+std::vector<std::array<double, 2>> test_frames(
+    const NonlinearBlendData& data, const TestSet& set, const std::vector<Cell>& cells,
+    const std::vector<std::array<double, 2>>& candidates, const BlendSpace& space,
+    double* linear_error) {
+  const int n = space.num_inputs;
+  const int nt = static_cast<int>(set.tests.size());
+  std::vector<std::array<double, 2>> errors(static_cast<std::size_t>(space.num_frames) * nt,
+                                            {0.0, 0.0});
+  std::vector<double> linear_errors(space.num_frames, 0.0);
+  tbb::parallel_for(0, space.num_frames, [&](int f) {
+    std::vector<Eigen::Matrix3Xd> inputs(n);
+    for (int k = 0; k < n; ++k) inputs[k] = frame_positions(space, k, f);
+    NonlinearBlendInputs prepared;
+    nonlinear_blend_prepare(data, inputs, &prepared);
+    Eigen::Matrix3Xd x;
     for (int wi = 0; wi < static_cast<int>(set.weights.size()); ++wi) {
       nonlinear_blend_solve(data, prepared, set.weights[wi], &x);
       const Eigen::Matrix3Xd linear = linear_blend(inputs, set.weights[wi]);
@@ -251,16 +345,23 @@ std::vector<double> solve_frames(const NonlinearBlendData& data, const TestSet& 
       for (int ti = 0; ti < nt; ++ti) {
         const Test& test = set.tests[ti];
         if (test.weight != wi) continue;
-        errors[static_cast<std::size_t>(f) * nt + ti] =
-            max_distance(x, *space, cells[test.cell].corners, test.g, f);
+        auto& e = errors[static_cast<std::size_t>(f) * nt + ti];
+        for (int k = 0; k < 2; ++k) {
+          const double arc = candidates[test.cell][k];
+          e[k] = k > 0 && arc == candidates[test.cell][0]
+                     ? e[0]
+                     : max_distance(x, space, cells[test.cell].corners, test.g, arc, f);
+        }
       }
     }
   });
-  std::vector<double> worst(nt, 0.0);
-  for (int f = 0; f < space->num_frames; ++f) {
+  std::vector<std::array<double, 2>> worst(nt, {0.0, 0.0});
+  for (int f = 0; f < space.num_frames; ++f) {
     *linear_error = std::max(*linear_error, linear_errors[f]);
     for (int ti = 0; ti < nt; ++ti) {
-      worst[ti] = std::max(worst[ti], errors[static_cast<std::size_t>(f) * nt + ti]);
+      for (int k = 0; k < 2; ++k) {
+        worst[ti][k] = std::max(worst[ti][k], errors[static_cast<std::size_t>(f) * nt + ti][k]);
+      }
     }
   }
   return worst;
@@ -273,7 +374,8 @@ bool refine_worst(const HybridBuildOptions& options, Refinement* refinement) {
   const std::vector<Cell>& cells = refinement->cells();
   std::vector<int> marked;
   for (int c = 0; c < static_cast<int>(cells.size()); ++c) {
-    if (cells[c].error > options.epsilon && cells[c].depth < options.max_depth) {
+    if (cells[c].error > options.epsilon &&
+        (cells[c].depth < options.max_depth || !cells[c].quadratic)) {
       marked.push_back(c);
     }
   }
@@ -321,15 +423,32 @@ HybridBuildReport build_hybrid_references(const HybridBuildOptions& options,
 
   Refinement refinement(space);
   do {
+    solve_pending(data, refinement.pending(), space);
     const TestSet set = collect_tests(*space, refinement.cells());
-    const std::vector<double> errors = solve_frames(
-        data, set, refinement.pending(), refinement.cells(), space, &report.linear_max_error);
+    // Candidate shape functions of each untested cell: quadratic, and for a 2-input segment
+    // the arc basis with the angle its nodes draw; the cell keeps the better at its tests.
+    std::vector<Cell>& cells = refinement.cells();
+    std::vector<std::array<double, 2>> candidates(cells.size(), {0.0, 0.0});
+    for (std::size_t c = 0; c < cells.size(); ++c) {
+      if (cells[c].error >= 0 || !cells[c].quadratic || space->num_inputs != 2) continue;
+      const int m = cell_midpoints(*space, cells[c].corners)[0];
+      candidates[c][1] = segment_arc_angle(*space, cells[c].corners[0], m, cells[c].corners[1]);
+    }
+    const std::vector<std::array<double, 2>> errors =
+        test_frames(data, set, cells, candidates, *space, &report.linear_max_error);
     report.nonlinear_solves +=
         space->num_frames * static_cast<int>(refinement.pending().size() + set.weights.size());
     refinement.clear_pending();
+    std::vector<std::array<double, 2>> cell_errors(cells.size(), {-1.0, -1.0});
     for (std::size_t ti = 0; ti < set.tests.size(); ++ti) {
-      Cell& cell = refinement.cells()[set.tests[ti].cell];
-      cell.error = std::max({cell.error, 0.0, errors[ti]});
+      auto& e = cell_errors[set.tests[ti].cell];
+      for (int k = 0; k < 2; ++k) e[k] = std::max({e[k], 0.0, errors[ti][k]});
+    }
+    for (std::size_t c = 0; c < cells.size(); ++c) {
+      if (cell_errors[c][0] < 0) continue;  // tested earlier
+      const int k = cell_errors[c][1] < cell_errors[c][0] ? 1 : 0;
+      cells[c].arc = candidates[c][k];
+      cells[c].error = cell_errors[c][k];
     }
   } while (refine_worst(options, &refinement));
 
@@ -374,13 +493,24 @@ void add_line_references(const Eigen::Matrix3Xd& reference, std::span<const Tri>
       store_frame(x, refs[j], f, space);
     }
   });
+  // Nodes along the line: input 0, the references, input 1. A node exactly half way between
+  // its neighbours is the midpoint of a quadratic segment; otherwise the segment is linear.
+  std::vector<int> nodes{0};
+  nodes.insert(nodes.end(), refs.begin(), refs.end());
+  nodes.push_back(1);
+  auto at = [&](int r) { return space->reference_weights[r * 2 + 1]; };
   space->cells.clear();
-  int previous = 0;
-  for (int r : refs) {
-    space->cells.push_back({previous, r, -1});
-    previous = r;
+  space->cell_arc_angles.clear();
+  for (std::size_t i = 0; i + 1 < nodes.size();) {
+    const bool quadratic =
+        i + 2 < nodes.size() &&
+        std::abs(at(nodes[i + 1]) - 0.5 * (at(nodes[i]) + at(nodes[i + 2]))) <= 1e-12;
+    const std::size_t end = i + (quadratic ? 2 : 1);
+    space->cells.push_back({nodes[i], nodes[end], -1});
+    space->cell_arc_angles.push_back(
+        quadratic ? segment_arc_angle(*space, nodes[i], nodes[i + 1], nodes[end]) : 0.0);
+    i = end;
   }
-  space->cells.push_back({previous, 1, -1});
   space->check();
 }
 

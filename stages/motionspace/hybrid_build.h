@@ -3,14 +3,20 @@
 // reference weights w_j by recursive bisection of the weight simplex and store the non-linear
 // blend M_NL(t, w_j) at every frame, so that the runtime (runtime/blend.h) evaluates Eq. 1.
 //
-// The weight simplex starts as one cell whose corners are the inputs (where the hybrid is
-// exact). A cell is tested at interior weights (2 inputs: the segment's quarter and mid
-// points; 3 inputs: the edge midpoints, the centroid and the points halfway from the centroid
-// to each corner) at every frame; while the largest vertex distance |M_NL - M| there exceeds
-// epsilon, the cell is bisected at the midpoint of its refinement edge, which becomes a new
-// reference. Triangles are split by newest-vertex bisection with its usual closure (a
-// neighbour sharing the split edge is split too), so the cells always meet edge to edge and
-// the runtime blend stays continuous in w.
+// Every cell is quadratic (runtime/blend.h): its nodes are its corners and the references at
+// its edge midpoints. The weight simplex starts as one cell whose corners are the inputs (where
+// the hybrid is exact), linear until its error calls for references: its first refinement adds
+// its edge midpoints (2 inputs: w = 1/2; 3 inputs: the three edge midpoints) and makes it
+// quadratic. A cell is tested between its nodes (2 inputs: the segment's quarter points;
+// 3 inputs: the edge quarter points, the centroid and the points half way from each corner to
+// the opposite edge's midpoint; the linear root also at its edge midpoints) at every frame;
+// while the largest vertex distance |M_NL - M| there exceeds epsilon, a quadratic cell is
+// bisected at the midpoint of its refinement edge (already a reference), and the children's new
+// edge midpoints become new references. Triangles are split by newest-vertex bisection with its usual closure (a
+// neighbour sharing the split edge is split too), so the cells always meet edge to edge, each
+// shared edge has the same three nodes on both sides, and the runtime blend stays continuous.
+// A 2-input segment also tries the arc basis (runtime/blend.h) with the angle its nodes draw
+// (segment_arc_angle) and keeps it where it errs less at the cell's tests.
 #include <Eigen/Core>
 #include <span>
 
@@ -22,9 +28,12 @@ namespace fourd {
 
 struct HybridBuildOptions {
   double epsilon = 0.005;  // max vertex distance of the hybrid from the non-linear blend [m]
-  int max_depth = 8;       // at most this many bisections from the whole simplex to a cell
-  int max_references =
-      32;  // at most this many added references (each costs #frames x #V x 12 bytes)
+  // At most this many bisections from the whole simplex to a cell (0: the root alone, made
+  // quadratic if linear blending misses epsilon).
+  int max_depth = 8;
+  // At most this many added references (each costs #frames x #V x 12 bytes). The root cell's
+  // midpoints take 1 (2 inputs) or 3 (3 inputs); a smaller budget leaves the blend linear.
+  int max_references = 32;
 
   template <class V>
   void visit(V& v) {
@@ -55,10 +64,19 @@ HybridBuildReport build_hybrid_references(const HybridBuildOptions& options,
                                           const Eigen::Matrix3Xd& reference,
                                           std::span<const Tri> triangles, BlendSpace* space);
 
+// The arc angle of a 2-input segment with corners a, b and midpoint node m (references; m < 0:
+// 0): per vertex and frame, the angle of the circle through the three nodes' positions (the
+// inscribed angle at m is pi - theta / 2), averaged with the squared sagitta |x_m - (x_a +
+// x_b) / 2|^2 as weight, so the vertices that bend most decide; in [0, pi].
+double segment_arc_angle(const BlendSpace& space, int a, int m, int b);
+
 // Fixed references on the weight line of a 2-input space (the paper's Table 1: "hybrid with 1
-// reference" is s = {0.5}, "with 3 references" s = {0.25, 0.5, 0.75}): adds a reference at
+// reference" is s = {0.5}: one quadratic segment [0, 1] with its midpoint; "with 3 references"
+// s = {0.25, 0.5, 0.75}: quadratic segments [0, 0.5] and [0.5, 1]): adds a reference at
 // weights (1 - s_j, s_j) for each s_j, strictly increasing inside (0, 1), stores its non-linear
-// blend at every frame and tiles the line with the segments between consecutive references.
+// blend at every frame and tiles the line from s = 0 to 1: a node exactly half way between its
+// neighbours becomes the midpoint of a quadratic segment (with its arc angle from
+// segment_arc_angle), otherwise consecutive nodes bound a linear segment.
 // `space` must hold only its 2 inputs and the single cell. Throws InputError otherwise.
 void add_line_references(const Eigen::Matrix3Xd& reference, std::span<const Tri> triangles,
                          std::span<const double> s, BlendSpace* space);

@@ -1,8 +1,9 @@
 #pragma once
 // The paper's Table 1 on our data: on the blend of the two takes whose shapes differ most in
 // rotation, the largest vertex distance from the non-linear blend (in % of the character's
-// height) of the linear blend, the hybrid blend with 1 reference (w = 0.5) and with 3
-// references (w = 0.25, 0.5, 0.75), over every sample of the motion and test weights evenly
+// height) of the linear blend, the hybrid blend with 1 reference (w = 0.5: one quadratic / arc
+// cell) and with 3 references (w = 0.25, 0.5, 0.75: cells [0, 0.5] and [0.5, 1]; see
+// runtime/blend.h and add_line_references), over every sample of the motion and test weights evenly
 // inside (0, 1); and the time per frame of each method. Also the data of the paper's Figure 4:
 // the blend at five weights with per-vertex error maps, at the sample where linear blending
 // errs most.

@@ -1,10 +1,12 @@
 // Motion-space blending on one core: the runtime's hybrid (Eq. 1) and linear blends at
 // continuous (t, w), a memory-bound baseline that reads exactly what the hybrid reads, and the
 // offline non-linear blend (precompute / prepare / solve). Meshes: closed tubes of about 3k,
-// 10k and 50k vertices; 3 inputs of 40 frames each.
+// 10k and 50k vertices; 3 inputs of 40 frames each (the *Line benchmarks: 2 inputs).
 #include <benchmark/benchmark.h>
 
 #include <cmath>
+#include <cstdlib>
+#include <utility>
 #include <map>
 #include <numbers>
 #include <random>
@@ -31,39 +33,49 @@ Eigen::Matrix3Xd input_pose(const test::TestMesh& m, int k, int f) {
   return test::bend_tube(m.positions, (10.0 + 30 * k + f) * kDeg, {}, 40.0 * k * kDeg);
 }
 
-// A 3-input space with the three edge-midpoint references and the 4 cells of one red
-// subdivision (what a build with one subdivision level gives). Reference frames are the
-// linear blends plus a bend, so the values are realistic; the runtime's cost does not depend
-// on them.
+// A 3-input space with the three edge-midpoint references and one quadratic (6-node P2) cell
+// over the whole weight triangle: what a build gives before any bisection, and what every
+// cell of a deeper build reads (6 nodes x 2 time samples). Reference frames are the linear
+// blends plus a bend, so the values are realistic; the runtime's cost does not depend on them.
 struct BenchSpace {
   test::TestMesh mesh;
   BlendSpace space;
 };
 
-const BenchSpace& bench_space(int vertices) {
-  static std::map<int, BenchSpace> cache;
-  auto it = cache.find(vertices);
+// inputs = 3: the P2 triangle above. inputs = 2 (the "Line" benchmarks, the layout of Table 1's
+// "hybrid, 1 reference"): inputs 0 and 1 with the reference at w = 1/2, one arc segment (3 nodes
+// x 2 time samples).
+const BenchSpace& bench_space(int vertices, int inputs = 3) {
+  static std::map<std::pair<int, int>, BenchSpace> cache;
+  auto it = cache.find({vertices, inputs});
   if (it != cache.end()) return it->second;
   BenchSpace b;
   b.mesh = tube_of_size(vertices);
-  b.space = make_blend_space(3, static_cast<int>(b.mesh.positions.cols()), kFrames);
-  for (int k = 0; k < 3; ++k) {
+  b.space = make_blend_space(inputs, static_cast<int>(b.mesh.positions.cols()), kFrames);
+  for (int k = 0; k < inputs; ++k) {
     for (int f = 0; f < kFrames; ++f)
       set_frame(&b.space, k, f, test::to_vec3f(input_pose(b.mesh, k, f)));
   }
-  const std::array<std::array<double, 3>, 3> mids{{{0.5, 0.5, 0}, {0, 0.5, 0.5}, {0.5, 0, 0.5}}};
-  std::array<int, 3> r{};
-  for (int j = 0; j < 3; ++j) {
-    r[j] = add_reference(&b.space, mids[j]);
+  std::vector<std::array<double, 3>> mids{{0.5, 0.5, 0}, {0, 0.5, 0.5}, {0.5, 0, 0.5}};
+  if (inputs == 2) mids.resize(1);
+  std::vector<int> r;
+  for (const auto& mid : mids) {
+    r.push_back(add_reference(&b.space, std::span<const double>(mid.data(), inputs)));
     for (int f = 0; f < kFrames; ++f) {
       Eigen::Matrix3Xd x = Eigen::Matrix3Xd::Zero(3, b.mesh.positions.cols());
-      for (int k = 0; k < 3; ++k) x += mids[j][k] * input_pose(b.mesh, k, f);
-      set_frame(&b.space, r[j], f, test::to_vec3f(test::bend_tube(x, 5 * kDeg)));
+      for (int k = 0; k < inputs; ++k) x += mid[k] * input_pose(b.mesh, k, f);
+      set_frame(&b.space, r.back(), f, test::to_vec3f(test::bend_tube(x, 5 * kDeg)));
     }
   }
-  b.space.cells = {{0, r[0], r[2]}, {r[0], 1, r[1]}, {r[2], r[1], 2}, {r[0], r[1], r[2]}};
+  b.space.cells = {{0, 1, inputs == 3 ? 2 : -1}};
+  if (inputs == 2) b.space.cell_arc_angles = {1.8};  // the arc basis (its sines are timed too)
   b.space.check();
-  return cache.emplace(vertices, std::move(b)).first->second;
+  const std::array<int, 3> expected =
+      inputs == 3 ? std::array<int, 3>{r[1], r[2], r[0]} : std::array<int, 3>{r[0], -1, -1};
+  if (cell_midpoints(b.space, b.space.cells[0]) != expected) {
+    std::abort();  // the cell would not be quadratic: the benchmark would measure the wrong thing
+  }
+  return cache.emplace(std::make_pair(vertices, inputs), std::move(b)).first->second;
 }
 
 // A fixed pseudo-random walk over (t, w): time jumps across frames (so frames come from L3 or
@@ -91,8 +103,8 @@ std::size_t read_bytes(const BlendSources& s, std::size_t floats) {
   return (s.count + 1) * floats * sizeof(float);  // sources read + output written
 }
 
-void BM_HybridBlend(benchmark::State& state) {
-  const BlendSpace& space = bench_space(static_cast<int>(state.range(0))).space;
+void run_hybrid(benchmark::State& state, int inputs) {
+  const BlendSpace& space = bench_space(static_cast<int>(state.range(0)), inputs).space;
   const std::vector<Query> q = queries();
   std::vector<std::size_t> query_bytes(q.size());
   for (std::size_t i = 0; i < q.size(); ++i) {
@@ -112,6 +124,8 @@ void BM_HybridBlend(benchmark::State& state) {
   state.SetBytesProcessed(static_cast<int64_t>(bytes));
   state.counters["vertices"] = space.num_vertices;
 }
+void BM_HybridBlend(benchmark::State& state) { run_hybrid(state, 3); }
+void BM_HybridBlendLine(benchmark::State& state) { run_hybrid(state, 2); }
 
 // The same evaluation at one (t, w) over and over: the frames stay in L1/L2.
 void BM_HybridBlendHot(benchmark::State& state) {
@@ -131,8 +145,11 @@ void BM_HybridBlendHot(benchmark::State& state) {
 
 // Baseline: reads the very frames each hybrid evaluation reads (precomputed lists) once and
 // writes their plain sum; no cell lookup, no coefficients. The floor for a memory-bound blend.
+// Compiled like runtime/blend.cpp's kernel: for the baseline x86-64 and, dispatched at run
+// time, for AVX2 + FMA.
 template <int K>
-void plain_sum(const BlendSources& s, std::size_t n, float* __restrict out) {
+inline __attribute__((always_inline)) void plain_sum_body(const BlendSources& s, std::size_t n,
+                                                          float* __restrict out) {
   const float* src[K];
   for (int k = 0; k < K; ++k) src[k] = s.sources[k];
 #pragma GCC ivdep
@@ -143,25 +160,44 @@ void plain_sum(const BlendSources& s, std::size_t n, float* __restrict out) {
   }
 }
 
-void baseline(const BlendSources& s, std::size_t n, float* out) {
-  switch (s.count) {
-    case 1:
-      return plain_sum<1>(s, n, out);
-    case 2:
-      return plain_sum<2>(s, n, out);
-    case 3:
-      return plain_sum<3>(s, n, out);
-    case 4:
-      return plain_sum<4>(s, n, out);
-    case 5:
-      return plain_sum<5>(s, n, out);
-    case 6:
-      return plain_sum<6>(s, n, out);
-  }
+template <int K>
+void plain_sum(const BlendSources& s, std::size_t n, float* out) {
+  plain_sum_body<K>(s, n, out);
 }
 
-void run_baseline(benchmark::State& state, bool hot) {
-  const BlendSpace& space = bench_space(static_cast<int>(state.range(0))).space;
+#if defined(__GNUC__) && defined(__x86_64__)
+template <int K>
+__attribute__((target("avx2,fma"))) void plain_sum_avx2(const BlendSources& s, std::size_t n,
+                                                        float* out) {
+  plain_sum_body<K>(s, n, out);
+}
+bool has_avx2_fma() {
+  static const bool yes = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+  }();
+  return yes;
+}
+#endif
+
+template <int... K>
+void baseline_dispatch(const BlendSources& s, std::size_t n, float* out,
+                       std::integer_sequence<int, K...>) {
+#if defined(__GNUC__) && defined(__x86_64__)
+  if (has_avx2_fma()) {
+    ((s.count == K + 1 ? (plain_sum_avx2<K + 1>(s, n, out), true) : false) || ...);
+    return;
+  }
+#endif
+  ((s.count == K + 1 ? (plain_sum<K + 1>(s, n, out), true) : false) || ...);
+}
+
+void baseline(const BlendSources& s, std::size_t n, float* out) {
+  baseline_dispatch(s, n, out, std::make_integer_sequence<int, kMaxBlendSources>{});
+}
+
+void run_baseline(benchmark::State& state, bool hot, int inputs = 3) {
+  const BlendSpace& space = bench_space(static_cast<int>(state.range(0)), inputs).space;
   const std::vector<Query> q = queries();
   std::vector<BlendSources> sources(q.size());
   for (std::size_t i = 0; i < q.size(); ++i) {
@@ -181,9 +217,10 @@ void run_baseline(benchmark::State& state, bool hot) {
 }
 void BM_BaselineRead(benchmark::State& state) { run_baseline(state, false); }
 void BM_BaselineReadHot(benchmark::State& state) { run_baseline(state, true); }
+void BM_BaselineReadLine(benchmark::State& state) { run_baseline(state, false, 2); }
 
-void BM_LinearBlend(benchmark::State& state) {
-  const BlendSpace& space = bench_space(static_cast<int>(state.range(0))).space;
+void run_linear(benchmark::State& state, int inputs) {
+  const BlendSpace& space = bench_space(static_cast<int>(state.range(0)), inputs).space;
   const std::vector<Query> q = queries();
   BlendedFrame out = make_blended_frame(space);
   std::size_t i = 0;
@@ -194,6 +231,8 @@ void BM_LinearBlend(benchmark::State& state) {
     benchmark::ClobberMemory();
   }
 }
+void BM_LinearBlend(benchmark::State& state) { run_linear(state, 3); }
+void BM_LinearBlendLine(benchmark::State& state) { run_linear(state, 2); }
 
 // Offline non-linear blend, 3 inputs: factorisation once per topology, decomposition once per
 // frame, and the per-weight solve (rotation/stretch blend + right-hand side + back-substitution).
@@ -251,6 +290,9 @@ BENCHMARK(BM_BaselineRead)->Arg(3000)->Arg(10000)->Arg(50000)->Unit(benchmark::k
 BENCHMARK(BM_HybridBlendHot)->Arg(3000)->Arg(10000)->Arg(50000)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_BaselineReadHot)->Arg(3000)->Arg(10000)->Arg(50000)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_LinearBlend)->Arg(3000)->Arg(10000)->Arg(50000)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_HybridBlendLine)->Arg(3000)->Arg(10000)->Arg(50000)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_BaselineReadLine)->Arg(3000)->Arg(10000)->Arg(50000)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_LinearBlendLine)->Arg(3000)->Arg(10000)->Arg(50000)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_NonlinearSolve)->Arg(3000)->Arg(10000)->Arg(50000)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_NonlinearPrepare)->Arg(3000)->Arg(10000)->Arg(50000)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_NonlinearPrecompute)->Arg(3000)->Arg(10000)->Arg(50000)->Unit(benchmark::kMillisecond);

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdint>
 #include <numbers>
 #include <vector>
@@ -137,6 +138,143 @@ TEST(Blend, HybridInterpolatesReferencesAndIsContinuous) {
   BlendedFrame out2 = make_blended_frame(line);
   blend_hybrid(line, 0.0, std::vector<float>{0.25f, 0.75f}, &out2);
   EXPECT_LT(test::max_vertex_distance(to_matrix(out2), 0.5 * (special + pose(m, 1, 0))), 1e-5);
+}
+
+// Quadratic cells: a reference at the midpoint of a cell edge is that cell's P2 node. On a
+// segment the blend is (1 - s)(1 - 2s) M_a + 4 s (1 - s) M_m + s (2s - 1) M_b; in a triangle
+// lambda_i (2 lambda_i - 1) at the corners and 4 lambda_i lambda_k at the edge midpoints.
+TEST(Blend, QuadraticCellsUseTheLagrangeBasis) {
+  const test::TestMesh m = test::make_tube(9, 7);
+  const Eigen::Matrix3Xd special = test::bend_tube(m.positions, -90 * kDeg);
+  BlendSpace line = make_space(m, 2, 2);
+  const int mid = add_reference(&line, std::vector<double>{0.5, 0.5});
+  for (int f = 0; f < 2; ++f) set_frame(&line, mid, f, test::to_vec3f(special));
+  line.cells = {{0, 1, -1}};  // one P2 segment: the reference is its midpoint node
+  ASSERT_NO_THROW(line.check());
+  EXPECT_EQ(cell_midpoints(line, line.cells[0]), (std::array<int, 3>{mid, -1, -1}));
+  BlendedFrame out = make_blended_frame(line);
+  for (double s : {0.0, 0.2, 0.5, 0.75, 1.0}) {
+    blend_hybrid(line, 0.0, std::vector<float>{static_cast<float>(1 - s), static_cast<float>(s)},
+                 &out);
+    const Eigen::Matrix3Xd expected = (1 - s) * (1 - 2 * s) * pose(m, 0, 0) +
+                                      4 * s * (1 - s) * special + s * (2 * s - 1) * pose(m, 1, 0);
+    EXPECT_LT(test::max_vertex_distance(to_matrix(out), expected), 1e-5) << "s = " << s;
+  }
+  // Exactly at the midpoint only the midpoint frame is read (3 nodes x 2 times elsewhere).
+  BlendSources src;
+  hybrid_blend_sources(line, 0.0, std::vector<float>{0.5f, 0.5f}, &src);
+  ASSERT_EQ(src.count, 1);
+  EXPECT_EQ(src.sources[0], line.frame(mid, 0));
+  hybrid_blend_sources(line, 0.3, std::vector<float>{0.7f, 0.3f}, &src);
+  EXPECT_EQ(src.count, 6);
+
+  // A 6-node triangle: references at the three edge midpoints of the weight triangle.
+  BlendSpace tri = make_space(m, 3, 1);
+  const std::array<std::array<double, 3>, 3> mids{{{0, 0.5, 0.5}, {0.5, 0, 0.5}, {0.5, 0.5, 0}}};
+  std::array<Eigen::Matrix3Xd, 3> mid_shapes;
+  for (int k = 0; k < 3; ++k) {
+    const int r = add_reference(&tri, mids[k]);
+    mid_shapes[k] = test::bend_tube(m.positions, (-30.0 - 20 * k) * kDeg, {}, 30.0 * k * kDeg);
+    set_frame(&tri, r, 0, test::to_vec3f(mid_shapes[k]));
+  }
+  ASSERT_NO_THROW(tri.check());
+  EXPECT_EQ(cell_midpoints(tri, tri.cells[0]), (std::array<int, 3>{3, 4, 5}));
+  BlendedFrame out3 = make_blended_frame(tri);
+  for (const std::array<double, 3>& l : std::vector<std::array<double, 3>>{
+           {0.2, 0.3, 0.5}, {1.0 / 3, 1.0 / 3, 1.0 / 3}, {0.5, 0.5, 0}, {0.9, 0.05, 0.05}}) {
+    blend_hybrid(tri, 0.0,
+                 std::vector<float>{static_cast<float>(l[0]), static_cast<float>(l[1]),
+                                    static_cast<float>(l[2])},
+                 &out3);
+    Eigen::Matrix3Xd expected = Eigen::Matrix3Xd::Zero(3, m.positions.cols());
+    for (int k = 0; k < 3; ++k) {
+      expected += l[k] * (2 * l[k] - 1) * pose(m, k, 0);
+      expected += 4 * l[(k + 1) % 3] * l[(k + 2) % 3] * mid_shapes[k];
+    }
+    EXPECT_LT(test::max_vertex_distance(to_matrix(out3), expected), 2e-5);
+  }
+  // The quadratic blend reproduces the linear one when the midpoints are linear blends, and a
+  // triangle missing a midpoint is linear along that edge.
+  BlendSources s3;
+  hybrid_blend_sources(tri, 0.0, std::vector<float>{0.2f, 0.3f, 0.5f}, &s3);
+  EXPECT_EQ(s3.count, 6);
+  float sum = 0;
+  for (int k = 0; k < s3.count; ++k) sum += s3.coefficients[k];
+  EXPECT_NEAR(sum, 1.f, 1e-6);
+}
+
+// The arc basis of a segment reproduces a rotation about a fixed axis exactly: nodes at 0,
+// theta / 2 and theta, the blend at s is the shape turned by s theta.
+TEST(Blend, ArcSegmentFollowsARotationExactly) {
+  const test::TestMesh m = test::make_tube(9, 7);
+  const Eigen::Matrix3Xd shape = test::bend_tube(m.positions, 40 * kDeg);
+  const double theta = 110 * kDeg;
+  const Eigen::Vector3d axis = Eigen::Vector3d(0.2, 1, 0.4).normalized();
+  auto turned = [&](double angle) {
+    return Eigen::Matrix3Xd(Eigen::AngleAxisd(angle, axis).toRotationMatrix() * shape);
+  };
+  BlendSpace line = make_blend_space(2, static_cast<int>(m.positions.cols()), 1);
+  set_frame(&line, 0, 0, test::to_vec3f(shape));
+  set_frame(&line, 1, 0, test::to_vec3f(turned(theta)));
+  const int mid = add_reference(&line, std::vector<double>{0.5, 0.5});
+  set_frame(&line, mid, 0, test::to_vec3f(turned(0.5 * theta)));
+  line.cell_arc_angles = {theta};
+  ASSERT_NO_THROW(line.check());
+  BlendedFrame out = make_blended_frame(line);
+  double worst_arc = 0;
+  for (double s : {0.1, 0.25, 0.4, 0.5, 0.7, 0.9}) {
+    const std::vector<float> w{static_cast<float>(1 - s), static_cast<float>(s)};
+    blend_hybrid(line, 0.0, w, &out);
+    worst_arc = std::max(worst_arc, test::max_vertex_distance(to_matrix(out), turned(s * theta)));
+  }
+  EXPECT_LT(worst_arc, 1e-5);
+  // The quadratic basis (theta = 0) does not: the tube's far end is centimetres off.
+  line.cell_arc_angles.clear();
+  blend_hybrid(line, 0.0, std::vector<float>{0.75f, 0.25f}, &out);
+  EXPECT_GT(test::max_vertex_distance(to_matrix(out), turned(0.25 * theta)), 1e-3);
+  // Tiny angles tend to the quadratic basis.
+  line.cell_arc_angles = {1e-7};
+  BlendedFrame quadratic = make_blended_frame(line);
+  blend_hybrid(line, 0.0, std::vector<float>{0.75f, 0.25f}, &out);
+  line.cell_arc_angles.clear();
+  blend_hybrid(line, 0.0, std::vector<float>{0.75f, 0.25f}, &quadratic);
+  EXPECT_LT(test::max_vertex_distance(to_matrix(out), to_matrix(quadratic)), 1e-6);
+
+  BlendSpace bad = line;
+  for (const std::vector<double>& angles :
+       std::vector<std::vector<double>>{{-0.1}, {4.0}, {0.5, 0.5}, {std::nan("")}}) {
+    bad.cell_arc_angles = angles;
+    EXPECT_THROW(bad.check(), InputError);
+  }
+  BlendSpace tri = make_space(m, 3, 1);
+  tri.cell_arc_angles = {0.5};  // arcs are for segments only
+  EXPECT_THROW(tri.check(), InputError);
+}
+
+// accumulate_weighted_sum adds to what the output holds; weighted_sum overwrites.
+TEST(Blend, WeightedSumsHandleEveryCount) {
+  AlignedFloats a(32), b(32);
+  for (int i = 0; i < 32; ++i) {
+    a[i] = static_cast<float>(i);
+    b[i] = 1.f;
+  }
+  for (int count = 1; count <= kMaxBlendSources; ++count) {
+    BlendSources s;
+    s.count = count;
+    for (int k = 0; k < count; ++k) {
+      s.sources[k] = k % 2 ? b.data() : a.data();
+      s.coefficients[k] = 0.5f * (k + 1);
+    }
+    AlignedFloats out(32, 100.f), acc(32, 100.f);
+    weighted_sum(s, 32, out.data());
+    accumulate_weighted_sum(s, 32, acc.data());
+    for (int i = 0; i < 32; ++i) {
+      float expected = 0;
+      for (int k = 0; k < count; ++k) expected += 0.5f * (k + 1) * (k % 2 ? 1.f : float(i));
+      ASSERT_NEAR(out[i], expected, 1e-3) << count;
+      ASSERT_NEAR(acc[i], 100.f + expected, 1e-3) << count;
+    }
+  }
 }
 
 TEST(Blend, CheckRejectsMalformedSpaces) {

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <cstdio>
 #include <map>
 #include <numbers>
 #include <set>
@@ -159,7 +160,7 @@ TEST_P(HybridBuild, SmallerEpsilonAddsReferences) {
   const Sequences s = elbow_sequences(n);
   std::vector<int> added;
   std::vector<double> errors;
-  for (double eps : {0.05, 0.01, n == 2 ? 0.002 : 0.005}) {
+  for (double eps : {0.05, 0.01, n == 2 ? 0.0005 : 0.002}) {
     BlendSpace space = space_of(s);
     HybridBuildOptions options;
     options.epsilon = eps;
@@ -178,32 +179,41 @@ TEST_P(HybridBuild, SmallerEpsilonAddsReferences) {
 INSTANTIATE_TEST_SUITE_P(Inputs, HybridBuild, ::testing::Values(2, 3));
 
 // Newest-vertex bisection keeps the weight triangles edge to edge: every cell edge is either
-// on the simplex boundary or shared by exactly two cells, and no reference lies inside an edge.
-TEST(HybridBuild, TriangleCellsAreConforming) {
+// on the simplex boundary or shared by exactly two cells, every edge has its midpoint node (the
+// cells are quadratic), and no other reference lies inside an edge.
+TEST(HybridBuild, TriangleCellsAreConformingAndQuadratic) {
   const Sequences s = elbow_sequences(3);
   BlendSpace space = space_of(s);
   HybridBuildOptions options;
-  options.epsilon = 0.001;
+  options.epsilon = 0.0002;
+  options.max_references = 100;
   build_hybrid_references(options, s.rest.positions, s.rest.triangles, &space);
   ASSERT_GT(space.cells.size(), 4u);
   std::map<std::pair<int, int>, int> edge_count;
   for (const auto& c : space.cells) {
     for (int k = 0; k < 3; ++k) ++edge_count[std::minmax(c[k], c[(k + 1) % 3])];
+    for (int m : cell_midpoints(space, c)) EXPECT_GE(m, 0);
   }
   auto w = [&](int r) { return Eigen::Vector3d(space.reference_weights.data() + 3 * r); };
   for (const auto& [edge, count] : edge_count) {
     const Eigen::Vector3d a = w(edge.first), b = w(edge.second);
     const bool on_boundary = ((a + b).array() == 0).any();  // both on one side of the simplex
     EXPECT_EQ(count, on_boundary ? 1 : 2) << edge.first << "-" << edge.second;
+    int midpoints = 0;
     for (int r = 0; r < space.num_references(); ++r) {
       if (r == edge.first || r == edge.second) continue;
       const Eigen::Vector3d p = w(r);
       const double along = (p - a).dot(b - a) / (b - a).squaredNorm();
       const bool inside =
           along > 1e-9 && along < 1 - 1e-9 && (a + along * (b - a) - p).norm() < 1e-12;
-      EXPECT_FALSE(inside) << "reference " << r << " hangs on edge " << edge.first << "-"
-                           << edge.second;
+      if (inside && std::abs(along - 0.5) < 1e-12) {
+        ++midpoints;
+      } else {
+        EXPECT_FALSE(inside) << "reference " << r << " hangs on edge " << edge.first << "-"
+                             << edge.second;
+      }
     }
+    EXPECT_EQ(midpoints, 1) << edge.first << "-" << edge.second;
   }
 }
 
@@ -226,11 +236,13 @@ TEST(HybridBuild, LimitsStopTheBisection) {
   BlendSpace space = space_of(s);
   HybridBuildOptions options;
   options.epsilon = 1e-6;
-  options.max_references = 2;
+  // The root segment's midpoint (1) and one bisection's two new midpoints (2) fit; the next
+  // bisection (2 more) does not.
+  options.max_references = 4;
   const HybridBuildReport report =
       build_hybrid_references(options, s.rest.positions, s.rest.triangles, &space);
   EXPECT_FALSE(report.converged);
-  EXPECT_EQ(report.references_added, 2);
+  EXPECT_EQ(report.references_added, 3);
   EXPECT_GT(report.max_error, options.epsilon);
 
   BlendSpace shallow = space_of(s);
@@ -238,8 +250,100 @@ TEST(HybridBuild, LimitsStopTheBisection) {
   options.max_depth = 1;
   const HybridBuildReport r1 =
       build_hybrid_references(options, s.rest.positions, s.rest.triangles, &shallow);
-  EXPECT_EQ(r1.references_added, 1);
+  EXPECT_EQ(r1.references_added, 3);
   EXPECT_EQ(r1.max_depth, 1);
+
+  // Depth 0: the one quadratic segment, with its midpoint w = 1/2.
+  BlendSpace root = space_of(s);
+  options.max_depth = 0;
+  const HybridBuildReport r0 =
+      build_hybrid_references(options, s.rest.positions, s.rest.triangles, &root);
+  EXPECT_EQ(r0.references_added, 1);
+  ASSERT_EQ(root.cells.size(), 1u);
+  EXPECT_EQ(cell_midpoints(root, root.cells[0])[0], 2);
+
+  // No budget for the midpoint: the blend stays linear (one linear cell, no reference).
+  BlendSpace none = space_of(s);
+  options.max_depth = 8;
+  options.max_references = 0;
+  const HybridBuildReport rn =
+      build_hybrid_references(options, s.rest.positions, s.rest.triangles, &none);
+  EXPECT_EQ(rn.references_added, 0);
+  EXPECT_FALSE(rn.converged);
+  EXPECT_NEAR(rn.max_error, rn.linear_max_error, 1e-4);
+}
+
+// Table 1's fixed references: s = {1/2} is one quadratic segment, s = {1/4, 1/2, 3/4} two;
+// references that are not midpoints bound linear segments.
+TEST(HybridBuild, LineReferencesMakeQuadraticSegments) {
+  const Sequences s = elbow_sequences(2);
+  BlendSpace one = space_of(s);
+  add_line_references(s.rest.positions, s.rest.triangles, std::vector<double>{0.5}, &one);
+  EXPECT_EQ(one.cells, (std::vector<std::array<int, 3>>{{0, 1, -1}}));
+  EXPECT_EQ(cell_midpoints(one, one.cells[0])[0], 2);
+  BlendSpace three = space_of(s);
+  add_line_references(s.rest.positions, s.rest.triangles, std::vector<double>{0.25, 0.5, 0.75},
+                      &three);
+  EXPECT_EQ(three.cells, (std::vector<std::array<int, 3>>{{0, 3, -1}, {3, 1, -1}}));
+  EXPECT_EQ(cell_midpoints(three, three.cells[0])[0], 2);
+  EXPECT_EQ(cell_midpoints(three, three.cells[1])[0], 4);
+  BlendSpace odd = space_of(s);
+  add_line_references(s.rest.positions, s.rest.triangles, std::vector<double>{0.3}, &odd);
+  EXPECT_EQ(odd.cells, (std::vector<std::array<int, 3>>{{0, 2, -1}, {2, 1, -1}}));
+  EXPECT_EQ(cell_midpoints(odd, odd.cells[0])[0], -1);
+}
+
+// A rigidly rotating pair: the non-linear blend turns the shape by s x angle, so the
+// displacement from the linear blend is the arc against its chord. One quadratic segment with
+// the reference at w = 1/2 follows the arc's sagitta; linear blending cuts the chord, and linear
+// interpolation inside the two cells [0, 1/2] and [1/2, 1] (the paper's g) still cuts the two
+// half-chords. The arc basis with the angle the nodes draw (what add_line_references sets)
+// also follows the pace along the arc: it is exact for a rigid rotation.
+TEST(HybridBuild, QuadraticCellFollowsARigidRotation) {
+  Sequences s;
+  s.rest = test::make_tube(17, 12);
+  s.frames.resize(2);
+  for (int f = 0; f < kFrames; ++f) {
+    const Eigen::Matrix3Xd bent = test::bend_tube(s.rest.positions, (30.0 + 5 * f) * kDeg);
+    s.frames[0].push_back(bent);
+    s.frames[1].push_back(
+        test::rotate_about_centroid(bent, (40.0 + 5 * f) * kDeg, Eigen::Vector3d(1, 0.3, 0.2)));
+  }
+  BlendSpace arc = space_of(s);
+  add_line_references(s.rest.positions, s.rest.triangles, std::vector<double>{0.5}, &arc);
+  ASSERT_EQ(arc.cell_arc_angles.size(), 1u);
+  // The angle the nodes draw: the rotation (40 to 50 degrees over the frames).
+  EXPECT_GT(arc.cell_arc_angles[0], 40 * kDeg);
+  EXPECT_LT(arc.cell_arc_angles[0], 50 * kDeg);
+  BlendSpace quadratic = arc;  // the same reference, the quadratic basis
+  quadratic.cell_arc_angles.clear();
+  BlendSpace linear_cells = quadratic;  // the same reference, interpolated linearly per half
+  linear_cells.cells = {{0, 2, -1}, {2, 1, -1}};
+  ASSERT_NO_THROW(linear_cells.check());
+
+  const NonlinearOracle oracle(s);
+  double worst_arc = 0, worst_quadratic = 0, worst_cells = 0, worst_linear = 0;
+  for (int j = 1; j < 20; ++j) {
+    const std::vector<double> w{1 - j / 20.0, j / 20.0};
+    for (int f = 0; f < kFrames; ++f) {
+      const Eigen::Matrix3Xd nl = oracle.blend(f, w);
+      worst_arc = std::max(worst_arc, test::max_vertex_distance(evaluate(arc, f, w, true), nl));
+      worst_quadratic = std::max(
+          worst_quadratic, test::max_vertex_distance(evaluate(quadratic, f, w, true), nl));
+      worst_cells =
+          std::max(worst_cells, test::max_vertex_distance(evaluate(linear_cells, f, w, true), nl));
+      worst_linear =
+          std::max(worst_linear, test::max_vertex_distance(evaluate(quadratic, f, w, false), nl));
+    }
+  }
+  std::printf(
+      "rigid rotation: max error linear %.2f mm, linear in 2 cells %.2f mm, quadratic %.2f mm, "
+      "arc %.3f mm\n",
+      1000 * worst_linear, 1000 * worst_cells, 1000 * worst_quadratic, 1000 * worst_arc);
+  EXPECT_GT(worst_linear, 0.02);  // a real rotation: centimetres off
+  EXPECT_LT(worst_quadratic, 0.1 * worst_linear);   // measured: 0.056
+  EXPECT_LT(worst_quadratic, 0.35 * worst_cells);   // measured: 0.22
+  EXPECT_LT(worst_arc, 0.2 * worst_quadratic);
 }
 
 TEST(HybridBuild, RejectsNonPositiveEpsilonAndUsedSpaces) {

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <fstream>
 
+#include "pipeline/core/binary_format.h"
 #include "pipeline/core/error.h"
 #include "pipeline/core/files.h"
 #include "tests/motionspace/test_meshes.h"
@@ -87,7 +88,8 @@ TEST(MotionSpace, ParameterSelectsWeightsWithoutReallocating) {
 }
 
 TEST(MotionSpace, FileRoundTripAndCorruption) {
-  const MotionSpace s = small_space();
+  MotionSpace s = small_space();
+  s.blend.cell_arc_angles = {0.7};
   const std::filesystem::path path =
       std::filesystem::temp_directory_path() /
       ("fourd_motion_space_" + std::to_string(::getpid()) + ".mspace");
@@ -97,6 +99,7 @@ TEST(MotionSpace, FileRoundTripAndCorruption) {
   EXPECT_EQ(r.takes, s.takes);
   EXPECT_EQ(r.triangles, s.triangles);
   EXPECT_EQ(r.blend.cells, s.blend.cells);
+  EXPECT_EQ(r.blend.cell_arc_angles, s.blend.cell_arc_angles);
   EXPECT_EQ(r.blend.reference_weights, s.blend.reference_weights);
   ASSERT_EQ(r.blend.frames.size(), s.blend.frames.size());
   EXPECT_TRUE(std::equal(r.blend.frames.begin(), r.blend.frames.end(), s.blend.frames.begin()));
@@ -106,6 +109,17 @@ TEST(MotionSpace, FileRoundTripAndCorruption) {
   std::string bytes = read_file(path);
   bytes[bytes.size() / 2] ^= 0x5a;
   write_file_atomic(path, bytes);
+  EXPECT_THROW(load_motion_space(path), InputError);
+  std::filesystem::remove(path);
+}
+
+TEST(MotionSpace, LoaderRefusesUnknownVersions) {
+  const std::filesystem::path path =
+      std::filesystem::temp_directory_path() /
+      ("fourd_motion_space_version_" + std::to_string(::getpid()) + ".mspace");
+  BinaryWriter w;
+  w.write<std::int32_t>(0);
+  w.save(path, FileMagic("FOURDMS"), 3);
   EXPECT_THROW(load_motion_space(path), InputError);
   std::filesystem::remove(path);
 }
