@@ -381,8 +381,8 @@ void run_align(const Session& session, const StageArgs& args) {
   // 3. Registration along the tree, independent branches in parallel.
   const int n = static_cast<int>(usable.size());
   std::vector<Fit> fits(n);
-  std::vector<char> aligned(n, 0), attempted(n, 0);
-  std::vector<int> parent_of(n, -1);  // database indices, as finally registered
+  std::vector<char> aligned(n, 0), attempted(n, 0), has_fit(n, 0);
+  std::vector<int> parent_of(n, -1);  // database indices, as finally registered (or best tried)
   std::vector<std::set<int>> tried(n);
   std::set<fs::path> written;
   std::mutex written_mutex;
@@ -410,11 +410,18 @@ void run_align(const Session& session, const StageArgs& args) {
       return false;
     }
     const std::string failure = fit_failure(fit.stats, options);
-    fits[k] = std::move(fit);
     if (!failure.empty()) {
+      // Keep the best of the failed attempts (it may be kept, flagged, at the end).
+      if (!has_fit[k] || fit.stats.surface_rms < fits[k].stats.surface_rms) {
+        fits[k] = std::move(fit);
+        parent_of[k] = p;
+        has_fit[k] = 1;
+      }
       f.status.error = failure;
       return false;
     }
+    fits[k] = std::move(fit);
+    has_fit[k] = 1;
     parent_of[k] = p;
     aligned[k] = 1;
     write_frame(k);
@@ -470,13 +477,26 @@ void run_align(const Session& session, const StageArgs& args) {
     }
   }
 
+  // 5. Frames whose every attempt failed: by default their best fit is kept and flagged (the
+  //    motion stays complete for the stages after this one, and the report and validation show
+  //    the frame's error); with keep_failed_fits off they are excluded.
+  std::vector<char> kept(n, 0);
+  if (options.keep_failed_fits) {
+    for (int k = 0; k < n; ++k) {
+      if (aligned[k] || !has_fit[k]) continue;
+      kept[k] = 1;
+      frames[usable[k]].status.flags.push_back("kept_failed_fit");
+      write_frame(k);
+    }
+  }
+
   // Statuses for the report.
   for (int k = 0; k < n; ++k) {
     FrameStatus& s = frames[usable[k]].status;
-    s.aligned = aligned[k];
+    s.aligned = aligned[k] || kept[k];
     s.fit = fits[k].stats;
     s.seconds = fits[k].seconds;
-    if (aligned[k]) {
+    if (aligned[k] || kept[k]) {
       const int p = parent_of[k];
       s.parent = p >= 0 ? usable[p] : -1;
       s.parent_distance = p >= 0 ? distances.value(k, p) : 0.0;
@@ -493,6 +513,8 @@ void run_align(const Session& session, const StageArgs& args) {
   for (FrameData& f : frames) {
     if (!f.status.aligned) {
       log::warn("{}: excluded - {}", frame_label(f.status), f.status.error);
+    } else if (!f.status.error.empty()) {
+      log::warn("{}: kept, flagged - {}", frame_label(f.status), f.status.error);
     }
   }
 
@@ -505,7 +527,7 @@ void run_align(const Session& session, const StageArgs& args) {
   // Outputs.
   remove_stale_frames(out, written);
   const double seconds = total_timer.seconds();
-  int aligned_count = 0;
+  int aligned_count = 0, flagged_count = 0;
   double rms_sum = 0;
   int flipped = 0;
   json nodes = json::array(), per_frame = json::array(), excluded = json::array();
@@ -524,6 +546,10 @@ void run_align(const Session& session, const StageArgs& args) {
       entry["frame"] = s.frame;
       entry["seconds"] = s.seconds;
       entry["flags"] = s.flags;
+      if (!s.error.empty()) {
+        entry["error"] = s.error;
+        ++flagged_count;
+      }
       per_frame.push_back(entry);
     } else {
       excluded.push_back({{"take", s.take}, {"frame", s.frame}, {"reason", s.error}, {"flags", s.flags}});
@@ -542,6 +568,7 @@ void run_align(const Session& session, const StageArgs& args) {
                  {"input", args.oracle ? "oracle" : "pipeline"},
                  {"frames", frames.size()},
                  {"aligned", aligned_count},
+                 {"flagged", flagged_count},
                  {"excluded", excluded},
                  {"template_vertices", template_mesh.num_vertices()},
                  {"surface_rms_mm", aligned_count ? 1e3 * std::sqrt(rms_sum / aligned_count) : 0.0},
@@ -554,8 +581,9 @@ void run_align(const Session& session, const StageArgs& args) {
   YAML::Emitter yaml;
   yaml << to_yaml(options);
   write_file_atomic(out / "options.yaml", std::string(yaml.c_str()) + "\n");
-  log::info("aligned {} of {} frames, surface rms {:.2f} mm, {} flipped triangles, {:.2f} s per frame",
-            aligned_count, frames.size(), report["surface_rms_mm"].get<double>(), flipped,
+  log::info("aligned {} of {} frames ({} of them kept despite a failed fit, flagged), surface rms "
+            "{:.2f} mm, {} flipped triangles, {:.2f} s per frame",
+            aligned_count, frames.size(), flagged_count, report["surface_rms_mm"].get<double>(), flipped,
             seconds / static_cast<double>(frames.size()));
 }
 

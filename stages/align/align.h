@@ -10,7 +10,8 @@
 //      histograms. Alignment errors do not accumulate along a take.
 //   4. Frames that cannot be used (empty, non-manifold, unreadable) are excluded; a frame whose
 //      registration fails (large residual or uncovered surface) is re-parented to the most
-//      similar aligned frame, and excluded when that fails too; all of it in the report.
+//      similar aligned frame; when that fails too, its best fit is kept and flagged (or, with
+//      keep_failed_fits off, it is excluded); all of it in the report.
 //   5. Optionally the sequential baseline: the same registration frame to frame in time order.
 //
 // Reads <input>/<take>/<frame>.ply (reconstruct/, or oracle/reconstruct/ in oracle mode) and
@@ -36,6 +37,8 @@ struct AlignOptions {
   double far_edge_factor = 4.0;   // tree edges longer than this x the median are flagged
   int reparent_attempts = 3;      // other parents tried for a frame whose registration failed
   bool exclude_non_manifold = true;  // non-manifold frames are excluded (else flagged only)
+  bool keep_failed_fits = true;      // a frame whose every fit failed keeps its best, flagged
+                                     // (else it is excluded and the take has a gap)
   double max_volume_ratio = 1.35;    // larger ratio of two takes' median volumes: refused as
                                      // different characters
   bool sequential_baseline = false;  // also run the frame-to-frame baseline (sequential/)
@@ -55,6 +58,8 @@ struct AlignOptions {
     v("reparent_attempts", reparent_attempts, "other parents tried after a failed fit",
       Range{0, 100});
     v("exclude_non_manifold", exclude_non_manifold, "exclude non-manifold frames");
+    v("keep_failed_fits", keep_failed_fits,
+      "keep the best fit of a frame whose registration failed, flagged (else exclude it)");
     v("max_volume_ratio", max_volume_ratio,
       "largest ratio of two takes' median volumes of one character", Range{1, 100});
     v("sequential_baseline", sequential_baseline, "also run the frame-to-frame baseline");
