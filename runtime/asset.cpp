@@ -33,65 +33,16 @@ AlignedFloats read_floats(BinaryReader& r, const char* what) {
   return values;
 }
 
+// A node: the motion space (its own file's layout) followed by its reference normals.
 void write_space(BinaryWriter& w, const GraphSpace& g) {
-  const MotionSpace& s = g.motion;
-  const BlendSpace& b = s.blend;
-  w.write_string(s.name);
-  w.write<std::uint8_t>(s.cyclic ? 1 : 0);
-  w.write<std::uint64_t>(s.takes.size());
-  for (const std::string& take : s.takes) w.write_string(take);
-  w.write<double>(s.character_height);
-  w.write_vector(s.triangles);
-  w.write<std::int32_t>(b.num_inputs);
-  w.write<std::int32_t>(b.num_vertices);
-  w.write<std::int32_t>(b.num_frames);
-  w.write<std::int32_t>(b.plane_stride);
-  w.write_vector(b.reference_weights);
-  write_floats(w, b.frames);
-  w.write_vector(b.cells);
-  w.write_vector(b.cell_arc_angles);
+  write_motion_space_fields(w, g.motion);
   write_floats(w, g.normals);
-  w.write_vector(s.roots);
-  w.write_vector(s.seconds);
-  const ParameterMap& m = s.parameter_map;
-  w.write_string(m.parameter);
-  w.write_string(m.unit);
-  w.write<std::int32_t>(m.num_inputs);
-  w.write_vector(m.path);
-  w.write_vector(m.values);
 }
 
 GraphSpace read_space(BinaryReader& r) {
   GraphSpace g;
-  MotionSpace& s = g.motion;
-  BlendSpace& b = s.blend;
-  s.name = r.read_string();
-  s.cyclic = r.read<std::uint8_t>() != 0;
-  const auto takes = r.read<std::uint64_t>();
-  if (takes > 3) {
-    throw InputError(fmt::format("{}: motion space '{}' has {} takes (1 to 3 supported)",
-                                 r.path().string(), s.name, takes));
-  }
-  for (std::uint64_t k = 0; k < takes; ++k) s.takes.push_back(r.read_string());
-  s.character_height = r.read<double>();
-  s.triangles = r.read_vector<Tri>();
-  b.num_inputs = r.read<std::int32_t>();
-  b.num_vertices = r.read<std::int32_t>();
-  b.num_frames = r.read<std::int32_t>();
-  b.plane_stride = r.read<std::int32_t>();
-  b.reference_weights = r.read_vector<double>();
-  b.frames = read_floats(r, "blend frames");
-  b.cells = r.read_vector<std::array<int, 3>>();
-  b.cell_arc_angles = r.read_vector<double>();
+  g.motion = read_motion_space_fields(r, /*has_arc_angles=*/true);
   g.normals = read_floats(r, "normals");
-  s.roots = r.read_vector<RootPose>();
-  s.seconds = r.read_vector<float>();
-  ParameterMap& m = s.parameter_map;
-  m.parameter = r.read_string();
-  m.unit = r.read_string();
-  m.num_inputs = r.read<std::int32_t>();
-  m.path = r.read_vector<double>();
-  m.values = r.read_vector<double>();
   return g;
 }
 

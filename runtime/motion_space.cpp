@@ -156,11 +156,8 @@ void evaluate_motion_space(const MotionSpace& space, double t, double p, MotionS
                                 out);
 }
 
-void save_motion_space(const std::filesystem::path& path, const MotionSpace& space) {
-  space.check();
-  BinaryWriter w;
+void write_motion_space_fields(BinaryWriter& w, const MotionSpace& space) {
   const BlendSpace& b = space.blend;
-  w.reserve(b.frames.size() * sizeof(float) + 4096);
   w.write_string(space.name);
   w.write<std::uint8_t>(space.cyclic ? 1 : 0);
   w.write<std::uint64_t>(space.takes.size());
@@ -183,20 +180,16 @@ void save_motion_space(const std::filesystem::path& path, const MotionSpace& spa
   w.write<std::int32_t>(m.num_inputs);
   w.write_vector(m.path);
   w.write_vector(m.values);
-  w.save(path, kMotionSpaceMagic, kMotionSpaceVersion);
 }
 
-MotionSpace load_motion_space(const std::filesystem::path& path) {
-  BinaryReader r = BinaryReader::open(path, kMotionSpaceMagic,
-                                      {kMotionSpaceVersionLinearCells, kMotionSpaceVersion});
-  const bool has_arcs = r.version() >= kMotionSpaceVersion;
+MotionSpace read_motion_space_fields(BinaryReader& r, bool has_arc_angles) {
   MotionSpace s;
   s.name = r.read_string();
   s.cyclic = r.read<std::uint8_t>() != 0;
   const auto num_takes = r.read<std::uint64_t>();
   if (num_takes > 3) {
-    throw InputError(fmt::format("{}: {} takes in one motion space (1 to 3 supported)",
-                                 path.string(), num_takes));
+    throw InputError(fmt::format("{}: motion space '{}' has {} takes (1 to 3 supported)",
+                                 r.path().string(), s.name, num_takes));
   }
   for (std::uint64_t k = 0; k < num_takes; ++k) s.takes.push_back(r.read_string());
   s.character_height = r.read<double>();
@@ -209,13 +202,13 @@ MotionSpace load_motion_space(const std::filesystem::path& path) {
   b.reference_weights = r.read_vector<double>();
   const auto floats = r.read<std::uint64_t>();
   if (floats > r.remaining() / sizeof(float)) {
-    throw InputError(fmt::format("{}: truncated blend frames ({} floats announced)",
-                                 path.string(), floats));
+    throw InputError(fmt::format("{}: truncated blend frames ({} floats announced, {} bytes left)",
+                                 r.path().string(), floats, r.remaining()));
   }
   b.frames.resize(floats);
   r.read_bytes(b.frames.data(), floats * sizeof(float));
   b.cells = r.read_vector<std::array<int, 3>>();
-  if (has_arcs) b.cell_arc_angles = r.read_vector<double>();
+  if (has_arc_angles) b.cell_arc_angles = r.read_vector<double>();
   s.roots = r.read_vector<RootPose>();
   s.seconds = r.read_vector<float>();
   ParameterMap& m = s.parameter_map;
@@ -224,6 +217,21 @@ MotionSpace load_motion_space(const std::filesystem::path& path) {
   m.num_inputs = r.read<std::int32_t>();
   m.path = r.read_vector<double>();
   m.values = r.read_vector<double>();
+  return s;
+}
+
+void save_motion_space(const std::filesystem::path& path, const MotionSpace& space) {
+  space.check();
+  BinaryWriter w;
+  w.reserve(space.blend.frames.size() * sizeof(float) + 4096);
+  write_motion_space_fields(w, space);
+  w.save(path, kMotionSpaceMagic, kMotionSpaceVersion);
+}
+
+MotionSpace load_motion_space(const std::filesystem::path& path) {
+  BinaryReader r = BinaryReader::open(path, kMotionSpaceMagic,
+                                      {kMotionSpaceVersionLinearCells, kMotionSpaceVersion});
+  MotionSpace s = read_motion_space_fields(r, r.version() >= kMotionSpaceVersion);
   r.expect_end();
   try {
     s.check();

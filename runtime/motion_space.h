@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "pipeline/core/binary_format.h"
 #include "pipeline/core/mesh.h"
 #include "runtime/blend.h"
 #include "runtime/parameter_map.h"
@@ -81,6 +82,10 @@ double blended_duration(const MotionSpace& space, std::span<const float> w);
 // Saves atomically / loads, checking magic, version, checksum and consistency. Throws IoError
 // or InputError naming the file.
 void save_motion_space(const std::filesystem::path& path, const MotionSpace& space);
+// The fields of a motion space in the order its file stores them; the runtime asset embeds
+// them too, so both files share one layout. The reader checks counts against the bytes left.
+void write_motion_space_fields(BinaryWriter& w, const MotionSpace& space);
+MotionSpace read_motion_space_fields(BinaryReader& r, bool has_arc_angles);
 MotionSpace load_motion_space(const std::filesystem::path& path);
 
 }  // namespace fourd

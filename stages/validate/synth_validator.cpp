@@ -19,6 +19,7 @@
 #include "pipeline/core/files.h"
 #include "pipeline/core/image_io.h"
 #include "pipeline/core/mesh_io.h"
+#include "stages/validate/sampling.h"
 #include "stages/validate/validate.h"
 
 namespace fourd::validate {
@@ -74,20 +75,6 @@ fs::path true_calibration_dir(const Session& session) {
   return fs::exists(truth / "cameras.txt", ec) ? truth : session.calibration_dir();
 }
 
-// `count` frames spread evenly over 0 .. frames-1 (both ends included when count >= 2).
-std::vector<int> sample_frames(int frames, int count) {
-  std::vector<int> out;
-  if (count >= frames) {
-    for (int f = 0; f < frames; ++f) out.push_back(f);
-    return out;
-  }
-  for (int i = 0; i < count; ++i) {
-    int f = count == 1 ? frames / 2
-                       : static_cast<int>(std::lround(double(i) * (frames - 1) / (count - 1)));
-    if (out.empty() || out.back() != f) out.push_back(f);
-  }
-  return out;
-}
 
 fs::path silhouette_path(const Session& session, const std::string& take, const Camera& camera,
                          int frame) {

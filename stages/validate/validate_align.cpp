@@ -23,6 +23,7 @@
 #include "pipeline/core/image_io.h"
 #include "pipeline/core/mesh_io.h"
 #include "stages/validate/mesh_query.h"
+#include "stages/validate/sampling.h"
 #include "stages/validate/validate.h"
 #include "stages/validate/validate_align.h"
 
@@ -61,12 +62,6 @@ double rms(const std::vector<double>& v) {
   return v.empty() ? 0.0 : std::sqrt(s / v.size());
 }
 
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0;
-  const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(q * v.size()));
-  std::nth_element(v.begin(), v.begin() + k, v.end());
-  return v[k];
-}
 
 Vec3f triangle_normal(const std::vector<Vec3f>& p, const Tri& t) {
   return (p[t[1]] - p[t[0]]).cross(p[t[2]] - p[t[0]]);

@@ -30,6 +30,7 @@
 #include "pipeline/core/files.h"
 #include "pipeline/core/image_io.h"
 #include "pipeline/core/mesh_io.h"
+#include "stages/validate/sampling.h"
 #include "stages/validate/validate.h"
 
 namespace fourd::validate {
@@ -118,41 +119,8 @@ std::vector<std::string> subfolders(const fs::path& dir) {
   return out;
 }
 
-int frame_count(const fs::path& dir, const std::string& ext) {
-  int n = 0;
-  std::error_code ec;
-  if (!fs::is_directory(dir, ec)) return 0;
-  for (const auto& e : fs::directory_iterator(dir)) {
-    const std::string stem = e.path().stem().string();
-    if (e.path().extension() != ext || stem.size() != 6 ||
-        !std::all_of(stem.begin(), stem.end(), ::isdigit)) {
-      continue;
-    }
-    n = std::max(n, std::stoi(stem) + 1);
-  }
-  return n;
-}
 
-std::vector<int> sample_frames(int frames, int count) {
-  std::vector<int> out;
-  if (count >= frames) {
-    for (int f = 0; f < frames; ++f) out.push_back(f);
-    return out;
-  }
-  for (int i = 0; i < count; ++i) {
-    int f = count == 1 ? frames / 2
-                       : static_cast<int>(std::lround(double(i) * (frames - 1) / (count - 1)));
-    if (out.empty() || out.back() != f) out.push_back(f);
-  }
-  return out;
-}
 
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0;
-  const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(q * (v.size() - 1) + 0.5));
-  std::nth_element(v.begin(), v.begin() + k, v.end());
-  return v[k];
-}
 
 double fraction_within(const std::vector<double>& v, double bound) {
   if (v.empty()) return 0;

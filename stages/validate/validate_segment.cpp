@@ -14,6 +14,7 @@
 
 #include "pipeline/core/error.h"
 #include "pipeline/core/image_io.h"
+#include "stages/validate/sampling.h"
 #include "stages/validate/validate.h"
 
 namespace fourd::validate {
@@ -33,35 +34,7 @@ std::vector<std::string> subfolders(const fs::path& dir) {
   return out;
 }
 
-// Frames 0..n-1 present as <frame>.png in `dir`: the count is the largest index + 1.
-int frame_count(const fs::path& dir) {
-  int n = 0;
-  std::error_code ec;
-  if (!fs::is_directory(dir, ec)) return 0;
-  for (const auto& e : fs::directory_iterator(dir)) {
-    const std::string stem = e.path().stem().string();
-    if (e.path().extension() != ".png" || stem.size() != 6 ||
-        !std::all_of(stem.begin(), stem.end(), ::isdigit)) {
-      continue;
-    }
-    n = std::max(n, std::stoi(stem) + 1);
-  }
-  return n;
-}
 
-std::vector<int> sample_frames(int frames, int count) {
-  std::vector<int> out;
-  if (count >= frames) {
-    for (int f = 0; f < frames; ++f) out.push_back(f);
-    return out;
-  }
-  for (int i = 0; i < count; ++i) {
-    int f = count == 1 ? frames / 2
-                       : static_cast<int>(std::lround(double(i) * (frames - 1) / (count - 1)));
-    if (out.empty() || out.back() != f) out.push_back(f);
-  }
-  return out;
-}
 
 struct Item {
   std::string take, camera;
@@ -101,7 +74,7 @@ StageReport validate_segment(const ValidationContext& ctx) {
   std::vector<Item> items;
   for (const std::string& take : takes) {
     for (const std::string& camera : subfolders(truth_dir / take)) {
-      const int frames = frame_count(truth_dir / take / camera);
+      const int frames = frame_count(truth_dir / take / camera, ".png");
       for (int f : sample_frames(frames, ctx.options.frames_per_take)) {
         items.push_back({take, camera, f});
       }

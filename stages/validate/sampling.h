@@ -1,0 +1,20 @@
+#pragma once
+// Small helpers the validators share: which frames exist, which to sample, percentiles.
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace fourd::validate {
+
+// Frames 0..n-1 stored as <NNNNNN><ext> in `dir` (".png", ".ply"): n is the largest index + 1;
+// 0 when the folder does not exist.
+int frame_count(const std::filesystem::path& dir, const std::string& ext);
+
+// `count` frames spread evenly over 0 .. frames-1 (both ends included when count >= 2; the
+// middle one when count is 1; every frame when count >= frames).
+std::vector<int> sample_frames(int frames, int count);
+
+// The q-quantile (0..1) of `v` by the nearest rank; 0 for an empty vector.
+double percentile(std::vector<double> v, double q);
+
+}  // namespace fourd::validate
