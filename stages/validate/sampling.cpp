@@ -8,6 +8,18 @@ namespace fourd::validate {
 
 namespace fs = std::filesystem;
 
+std::vector<std::string> subfolders(const fs::path& dir) {
+  std::vector<std::string> out;
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) return out;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    const std::string name = e.path().filename().string();
+    if (e.is_directory() && !name.empty() && name.front() != '.') out.push_back(name);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
 int frame_count(const fs::path& dir, const std::string& ext) {
   int n = 0;
   std::error_code ec;

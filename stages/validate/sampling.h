@@ -1,10 +1,15 @@
 #pragma once
-// Small helpers the validators share: which frames exist, which to sample, percentiles.
+// Small helpers the validators share: which takes and frames exist, which to sample,
+// percentiles.
 #include <filesystem>
 #include <string>
 #include <vector>
 
 namespace fourd::validate {
+
+// Names of the sub-folders of `dir` (takes, cameras), sorted, hidden ones left out; empty when
+// the folder does not exist.
+std::vector<std::string> subfolders(const std::filesystem::path& dir);
 
 // Frames 0..n-1 stored as <NNNNNN><ext> in `dir` (".png", ".ply"): n is the largest index + 1;
 // 0 when the folder does not exist.

@@ -107,17 +107,6 @@ std::vector<Vec3f> sample_surface(const Mesh& mesh, int count, unsigned seed) {
   return out;
 }
 
-std::vector<std::string> subfolders(const fs::path& dir) {
-  std::vector<std::string> out;
-  std::error_code ec;
-  if (!fs::is_directory(dir, ec)) return out;
-  for (const auto& e : fs::directory_iterator(dir)) {
-    const std::string name = e.path().filename().string();
-    if (e.is_directory() && !name.empty() && name.front() != '.') out.push_back(name);
-  }
-  std::sort(out.begin(), out.end());
-  return out;
-}
 
 
 
