@@ -395,7 +395,8 @@ TransitionPath search_transition_brute_force(const MotionGraph& graph, int edge,
 
 TransitionPath select_precomputed_transition(const MotionGraph& graph, int edge, int n,
                                              const MotionState& from, const TransitionTarget& to,
-                                             const TransitionOptions& options) {
+                                             const TransitionOptions& options,
+                                             bool parameter_rate_limit) {
   TransitionPath best;
   if (!valid_request(graph, edge, from, to)) return best;
   const GraphEdge& e = graph.edges[edge];
@@ -406,7 +407,7 @@ TransitionPath select_precomputed_transition(const MotionGraph& graph, int edge,
   const double p1 = clamp_parameter(dst, to.p);
   const double t1 = resolved_target_time(graph, to, options);
   const double d0 = space_duration(src, p0), d1 = space_duration(dst, p1);
-  const double dpt = parameter_step(dst, options);
+  const double dps = parameter_step(src, options), dpt = parameter_step(dst, options);
   best.cost = std::numeric_limits<double>::infinity();
   const int count = std::min<int>(n, static_cast<int>(e.precomputed.size()));
   for (int k = 0; k < count; ++k) {
@@ -419,6 +420,14 @@ TransitionPath select_precomputed_transition(const MotionGraph& graph, int edge,
       continue;  // a one-shot motion cannot go back
     }
     source_span = std::max(0.0, source_span);
+    // The parameter moves at most dp per step of alpha in time, as in the online trellis: the
+    // stored exit's parameter is reached no sooner than that (a cyclic source waits whole
+    // cycles; a one-shot source cannot reach it).
+    const double min_source_span = steps_between(p0, c.source_p, dps) * options.alpha;
+    if (parameter_rate_limit && source_span < min_source_span - kTimeTolerance) {
+      if (!src.cyclic()) continue;
+      source_span += std::ceil(min_source_span - source_span - kTimeTolerance);
+    }
     // Target: play from the stored entry to the requested time.
     double target_span = 0;
     double end_t = t1;
@@ -433,6 +442,12 @@ TransitionPath select_precomputed_transition(const MotionGraph& graph, int edge,
         continue;  // entered after the requested time
       }
       target_span = std::max(0.0, target_span);
+      // The same rate limit from the stored entry's parameter to the requested one.
+      const double min_target_span = steps_between(c.target_p, p1, dpt) * options.alpha;
+      if (parameter_rate_limit && target_span < min_target_span - kTimeTolerance) {
+        if (!dst.cyclic()) continue;
+        target_span += std::ceil(min_target_span - target_span - kTimeTolerance);
+      }
     }
     const double es = options.cost_unit * c.distance;
     const double el = latency_frames(source_span, d0, space_duration(src, c.source_p), ft) +

@@ -123,10 +123,15 @@ TransitionPath search_transition_brute_force(const MotionGraph& graph, int edge,
 
 // Baseline: the best of the edge's first `n` precomputed transitions for this request (the one
 // of least E_S + lambda E_L among those reachable: a one-shot source cannot go back in time, a
-// one-shot target cannot be entered after the requested time). found = false if none is.
+// one-shot target cannot be entered after the requested time). With `parameter_rate_limit`
+// the parameter moves at most dp per trellis step, as in the online search, so a stored exit
+// (entry) whose parameter is far from the current (requested) one is reached only after enough
+// time: a cyclic space waits whole cycles, a one-shot space cannot. Without it the parameter
+// may ramp to the stored one over any span, however short. found = false if none is reachable.
 TransitionPath select_precomputed_transition(const MotionGraph& graph, int edge, int n,
                                              const MotionState& from, const TransitionTarget& to,
-                                             const TransitionOptions& options);
+                                             const TransitionOptions& options,
+                                             bool parameter_rate_limit = true);
 
 // The target time a request resolves to: `to.t` if given, else options.one_shot_target_t for a
 // one-shot space, else -1 (any phase of a cyclic space).

@@ -128,14 +128,17 @@ Table2 evaluate_table2(const MotionGraph& graph, const TransitionOptions& transi
     row.offline_cpu_s = similarity_cpu_s;
     run_method(row, [&](const Request& r) { return search.search(graph, r.edge, r.from, r.to, o); });
   }
-  for (int n : options.precomputed) {
-    Table2Row row;
-    row.method = fmt::format("{} precomputed", n);
-    row.n = n;
-    row.offline_cpu_s = similarity_cpu_s + precompute_cpu_s;
-    run_method(row, [&](const Request& r) {
-      return select_precomputed_transition(graph, r.edge, n, r.from, r.to, transitions);
-    });
+  for (const bool limited : {true, false}) {
+    for (int n : options.precomputed) {
+      Table2Row row;
+      row.method = fmt::format("{} precomputed{}", n, limited ? "" : ", instant parameter");
+      row.n = n;
+      row.rate_limited = limited;
+      row.offline_cpu_s = similarity_cpu_s + precompute_cpu_s;
+      run_method(row, [&](const Request& r) {
+        return select_precomputed_transition(graph, r.edge, n, r.from, r.to, transitions, limited);
+      });
+    }
   }
   return table;
 }
@@ -149,6 +152,7 @@ nlohmann::json table2_json(const Table2& table) {
     j["rows"].push_back({{"method", r.method},
                          {"depth", r.depth},
                          {"precomputed", r.n},
+                         {"rate_limited", r.rate_limited},
                          {"answered", r.answered},
                          {"similarity_cost", r.similarity_cost},
                          {"played_similarity_cost", r.played_similarity_cost},

@@ -1,7 +1,8 @@
 #pragma once
 // The paper's Table 2 on our graph: random transition requests between motion spaces, each
 // answered by the online trellis search (several depths) and by the precomputed baseline
-// (n best transitions per edge), with the columns of the paper: E_S(P_opt), lambda E_L(P_opt),
+// (n best transitions per edge; once with the parameter rate limit the online trellis obeys, once
+// letting the parameter jump to a stored transition's at once), with the columns of the paper: E_S(P_opt), lambda E_L(P_opt),
 // latency [s], online CPU per transition [s] and offline CPU [s].
 //
 // E_S is reported two ways: as each method scores it (the online search uses the lower bound
@@ -43,6 +44,7 @@ struct Table2Row {
   std::string method;  // "online, depth 12", "10 precomputed"
   int depth = 0;       // online only
   int n = 0;           // precomputed only
+  bool rate_limited = true;  // precomputed: the parameter moves at most dp per trellis step
   int answered = 0;    // requests the method found a path for
   double similarity_cost = 0;         // mean E_S as the method scores it
   double played_similarity_cost = 0;  // mean E_S measured on the played frames

@@ -214,7 +214,9 @@ StageReport validate_transitions(const ValidationContext& ctx) {
         run.label, t2.at("requests").get<int>());
     for (const json& row : t2.at("rows")) {
       const int depth = row.at("depth").get<int>(), n = row.at("precomputed").get<int>();
-      const std::string id = n > 0 ? fmt::format("precomputed{}", n) : fmt::format("online_depth{}", depth);
+      const bool limited = row.value("rate_limited", true);
+      const std::string id = n > 0 ? fmt::format("precomputed{}{}", n, limited ? "" : "_instant")
+                                   : fmt::format("online_depth{}", depth);
       const double es = row.at("played_similarity_cost").get<double>();
       const double el = row.at("latency_cost").get<double>();
       const double latency = row.at("latency_s").get<double>();

@@ -17,16 +17,18 @@ TEST(Table2, EveryMethodAnswersAndDeeperTrellisesNeverCostMore) {
   options.timing_repeats = 1;
   options.depths = {3, 8, 12};
   const Table2 table = evaluate_table2(graph, transitions, options, 1.5, 4.0);
-  ASSERT_EQ(table.rows.size(), 6u);
+  ASSERT_EQ(table.rows.size(), 9u);  // 3 online, 3 precomputed with and 3 without rate limit
   EXPECT_EQ(table.requests, 30);
   EXPECT_FALSE(table.edges.empty());
   for (const Table2Row& row : table.rows) {
     SCOPED_TRACE(row.method);
-    EXPECT_GT(row.answered, 0);
+    if (row.n == 0 || !row.rate_limited) EXPECT_GT(row.answered, 0);
     EXPECT_GE(row.played_similarity_cost, 0);
     EXPECT_GE(row.latency_s, 0);
     EXPECT_NEAR(row.latency_cost, transitions.lambda * row.latency_s * graph.fps, 1e-6);
   }
+  // The rate limit can only take requests away from the baseline.
+  for (int k = 3; k < 6; ++k) EXPECT_LE(table.rows[k].answered, table.rows[k + 3].answered);
   // Online rows answer every request; a deeper trellis holds every path of a shallower one, so
   // its optimal cost (as scored) is never higher.
   for (int k = 0; k < 3; ++k) EXPECT_EQ(table.rows[k].answered, 30);

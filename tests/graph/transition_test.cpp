@@ -156,7 +156,8 @@ TEST(PrecomputedTransitions, AreSortedSeparatedAndSelectable) {
   // More stored transitions can only lower the selected cost.
   double previous = 1e300;
   for (const int n : {1, 5, 10}) {
-    const TransitionPath p = select_precomputed_transition(g, edge, n, {0, 0.4, 1.3}, {1, 0.8, 0.9}, o);
+    const TransitionPath p =
+        select_precomputed_transition(g, edge, n, {0, 0.4, 1.3}, {1, 0.8, 0.9}, o, false);
     ASSERT_TRUE(p.found);
     EXPECT_LE(p.cost, previous + 1e-9);
     previous = p.cost;
@@ -170,10 +171,33 @@ TEST(PrecomputedTransitions, OneShotSourceCannotGoBack) {
   const int edge = g.find_edge(1, 0);
   TransitionOptions o;
   // At the very end of the jump every stored exit lies in the past, unless one sits at t = 1.
-  const TransitionPath p = select_precomputed_transition(g, edge, 10, {1, 1.0, 0.9}, {0, 1.2, 0.5}, o);
+  const TransitionPath p =
+      select_precomputed_transition(g, edge, 10, {1, 1.0, 0.9}, {0, 1.2, 0.5}, o, false);
   bool any_at_end = false;
   for (const auto& c : g.edges[edge].precomputed) any_at_end |= c.source_t >= 1.0f - 1e-6f;
   EXPECT_EQ(p.found, any_at_end);
+}
+
+// With the rate limit a stored exit is reached no sooner than the parameter can move there at
+// dp per trellis step: from the far end of the range a cyclic source waits whole cycles.
+TEST(PrecomputedTransitions, ParameterMovesNoFasterThanTheTrellisAllows) {
+  const MotionGraph g = test::make_test_graph(/*with_turning=*/true);
+  const int edge = g.find_edge(0, 2);  // locomotion -> turning: both cyclic, so both can wait
+  ASSERT_GE(edge, 0);
+  const GraphSpace& src = g.spaces[0];
+  TransitionOptions o;
+  const double dp = o.alpha * (src.parameter_max() - src.parameter_min());
+  for (const double p0 : {src.parameter_min(), src.parameter_max()}) {
+    const MotionState from{0, 0.4, p0};
+    const TransitionTarget to{2, g.spaces[2].parameter_min(), 0.5};
+    const TransitionPath free = select_precomputed_transition(g, edge, 10, from, to, o, false);
+    const TransitionPath limited = select_precomputed_transition(g, edge, 10, from, to, o, true);
+    ASSERT_TRUE(free.found);
+    ASSERT_TRUE(limited.found);
+    EXPECT_GE(limited.cost, free.cost - 1e-9);
+    const double steps = std::ceil(std::abs(limited.exit.p - p0) / dp - 1e-9);
+    EXPECT_GE(limited.source_span, steps * o.alpha - 1e-9);
+  }
 }
 
 }  // namespace
