@@ -119,6 +119,15 @@ Eigen::Matrix3Xd apply_root(const Eigen::Matrix3Xd& shape, const Root2& root) {
   return out;
 }
 
+void smooth_roots(std::vector<Root2>* roots, int passes) {
+  std::vector<Root2>& r = *roots;
+  for (int pass = 0; pass < passes && r.size() > 2; ++pass) {
+    std::vector<Root2> s = r;
+    for (std::size_t i = 1; i + 1 < r.size(); ++i) s[i] = 0.25 * (r[i - 1] + 2 * r[i] + r[i + 1]);
+    r = std::move(s);
+  }
+}
+
 std::vector<Root2> estimate_roots(std::span<const Eigen::Matrix3Xd> frames,
                                   const Eigen::Matrix3Xd& templ, std::span<const double> torso) {
   std::vector<Root2> roots;

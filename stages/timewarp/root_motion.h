@@ -44,6 +44,11 @@ Eigen::Matrix3Xd remove_root(const Eigen::Matrix3Xd& frame, const Root2& root);
 // The inverse: a root-free shape placed at `root`.
 Eigen::Matrix3Xd apply_root(const Eigen::Matrix3Xd& shape, const Root2& root);
 
+// Smooths a root curve in time: `passes` of the [1 2 1] / 4 filter on x, y and the unwrapped
+// heading, the first and last roots kept. Alignment noise makes the per-frame torso estimate
+// jitter from frame to frame; the gait's own sway (a cycle long) passes nearly unchanged.
+void smooth_roots(std::vector<Root2>* roots, int passes);
+
 // Roots of a whole sequence with headings unwrapped (continuous across +-pi).
 std::vector<Root2> estimate_roots(std::span<const Eigen::Matrix3Xd> frames,
                                   const Eigen::Matrix3Xd& template_positions,

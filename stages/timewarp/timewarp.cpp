@@ -102,10 +102,11 @@ std::vector<Eigen::Matrix3Xd> load_take(const AlignedInput& input, const std::st
 
 LocalTake make_local_take(const std::string& name, std::vector<Eigen::Matrix3Xd> frames,
                           const Eigen::Matrix3Xd& template_positions,
-                          const std::vector<double>& torso) {
+                          const std::vector<double>& torso, int root_smoothing) {
   LocalTake take;
   take.name = name;
   take.roots = estimate_roots(frames, template_positions, torso);
+  smooth_roots(&take.roots, root_smoothing);
   take.shapes.resize(frames.size());
   tbb::parallel_for(std::size_t{0}, frames.size(), [&](std::size_t f) {
     take.shapes[f] = remove_root(frames[f], take.roots[f]);
@@ -246,7 +247,7 @@ void run_timewarp(const Session& session, const StageArgs& args) {
     log::Timer timer;
     std::vector<LocalTake> takes;
     for (const std::string& name : motion.takes) {
-      takes.push_back(make_local_take(name, load_take(input, name), templ, torso));
+      takes.push_back(make_local_take(name, load_take(input, name), templ, torso, options.root_smoothing));
     }
     const WarpedClass warped = warp_class(motion, config.fps, input.template_mesh,
                                           std::move(takes), options);

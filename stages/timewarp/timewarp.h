@@ -31,6 +31,7 @@ struct TimewarpOptions {
   double velocity_weight = 0.01;   // weight of the phase velocity in the DTW distance [cycle^2]
   double slope_penalty = 0.1;      // extra cost of non-diagonal DTW steps
   int smoothing = 2;               // smoothing passes over the DTW path
+  int root_smoothing = 8;          // [1 2 1] passes over each take's root curve (sigma 2 frames)
 
   template <class V>
   void visit(V& v) {
@@ -43,6 +44,9 @@ struct TimewarpOptions {
       Range{0, 1e6});
     v("slope_penalty", slope_penalty, "extra cost of non-diagonal DTW steps", Range{0, 100});
     v("smoothing", smoothing, "smoothing passes over the DTW path", Range{0, 100});
+    v("root_smoothing", root_smoothing,
+      "[1 2 1] passes over each take's root curve (damps frame-to-frame alignment jitter)",
+      Range{0, 1000});
   }
   CycleOptions cycle() const { return {min_cycle_frames, max_closure_ratio}; }
   WarpOptions warp() const { return {oversample, velocity_weight, slope_penalty, smoothing}; }
@@ -91,9 +95,10 @@ AlignedInput open_aligned_input(const std::filesystem::path& dir);
 std::vector<Eigen::Matrix3Xd> load_take(const AlignedInput& input, const std::string& take);
 
 // Removes root motion from a take's frames.
+// `root_smoothing`: passes of smooth_roots() over the estimated root curve.
 LocalTake make_local_take(const std::string& name, std::vector<Eigen::Matrix3Xd> frames,
                           const Eigen::Matrix3Xd& template_positions,
-                          const std::vector<double>& torso);
+                          const std::vector<double>& torso, int root_smoothing = 0);
 
 // Registers and resamples one class. Throws InputError for a class with fewer than 2 or more
 // than 3 takes, takes that do not fit together, or a cycle that cannot be closed (naming it).

@@ -81,6 +81,31 @@ TEST(RootMotion, HeadingsOfATurningWalkAreUnwrapped) {
   }
 }
 
+// Frame-to-frame jitter on a steady walk's root is damped, a slow sway (40 frames a period)
+// is kept, and the ends stay where they were.
+TEST(RootMotion, SmoothingDampsJitterAndKeepsSlowSway) {
+  std::vector<Root2> roots;
+  for (int f = 0; f < 60; ++f) {
+    const double jitter = (f % 2 ? 1 : -1) * 0.01;  // 1 cm, alternating every frame
+    const double sway = 0.03 * std::sin(2 * std::numbers::pi * f / 40.0);
+    roots.emplace_back(0.05 * f, sway + jitter, 0.002 * f);
+  }
+  const std::vector<Root2> before = roots;
+  smooth_roots(&roots, 8);
+  EXPECT_EQ(roots.front(), before.front());
+  EXPECT_EQ(roots.back(), before.back());
+  double jitter_left = 0, sway_kept = 0;
+  for (int f = 10; f < 50; ++f) {
+    const double sway = 0.03 * std::sin(2 * std::numbers::pi * f / 40.0);
+    jitter_left = std::max(jitter_left, std::abs(roots[f].y() - sway));
+    sway_kept = std::max(sway_kept, std::abs(roots[f].y()));
+    EXPECT_NEAR(roots[f].x(), 0.05 * f, 1e-9);  // a straight line is left alone
+    EXPECT_NEAR(roots[f].z(), 0.002 * f, 1e-9);
+  }
+  EXPECT_LT(jitter_left, 0.003);  // 1 cm of jitter -> under 3 mm (sway attenuated a little)
+  EXPECT_GT(sway_kept, 0.025);
+}
+
 TEST(Cycle, FindsAFractionalPeriodAndClosesIt) {
   const test::Walker w = test::make_walker();
   for (double period : {12.0, 12.5, 15.3}) {
