@@ -332,9 +332,17 @@ Warp register_take(const LocalTake& reference, const TakeTiming& reference_timin
                                                           reference_timing.length)));
   const std::vector<Eigen::Matrix3Xd> a = sample_phases(reference, reference_timing, 0, m, m + 1);
   const std::vector<Eigen::Matrix3Xd> va = phase_velocities(a, cyclic);
-  const Eigen::MatrixXd xa = stack(a), xva = stack(va);
+  // Each take's poses as deviations from its own mean pose (centre_poses): the takes of a class
+  // differ by what the blend interpolates (an arm reaching low or high, a longer stride), and
+  // that constant difference must not decide which phases correspond; how the pose moves does.
+  auto shapes = [&](const std::vector<Eigen::Matrix3Xd>& s) {
+    Eigen::MatrixXd x = stack(s);
+    if (options.center_poses) x.colwise() -= x.rowwise().mean();
+    return x;
+  };
+  const Eigen::MatrixXd xa = shapes(a), xva = stack(va);
   auto distances = [&](const std::vector<Eigen::Matrix3Xd>& b) {
-    return Eigen::MatrixXd(pairwise_distances(xa, stack(b)) +
+    return Eigen::MatrixXd(pairwise_distances(xa, shapes(b)) +
                            options.velocity_weight *
                                pairwise_distances(xva, stack(phase_velocities(b, cyclic))));
   };

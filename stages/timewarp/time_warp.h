@@ -90,6 +90,7 @@ struct WarpOptions {
   double velocity_weight = 0.01; // weight of the phase-velocity term of the distance [cycle^2]
   double slope_penalty = 0.1;    // extra cost of non-diagonal DTW steps (relative)
   int smoothing = 2;             // [1 2 1] smoothing passes over the DTW path
+  bool center_poses = true;      // compare poses as deviations from each take's mean pose
 };
 
 // Registers `take` to the reference take. Both timings must be of the same kind.

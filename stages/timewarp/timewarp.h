@@ -31,6 +31,7 @@ struct TimewarpOptions {
   double velocity_weight = 0.01;   // weight of the phase velocity in the DTW distance [cycle^2]
   double slope_penalty = 0.1;      // extra cost of non-diagonal DTW steps
   int smoothing = 2;               // smoothing passes over the DTW path
+  bool center_poses = true;        // DTW on deviations from each take's mean pose
   int root_smoothing = 8;          // [1 2 1] passes over each take's root curve (sigma 2 frames)
 
   template <class V>
@@ -44,12 +45,16 @@ struct TimewarpOptions {
       Range{0, 1e6});
     v("slope_penalty", slope_penalty, "extra cost of non-diagonal DTW steps", Range{0, 100});
     v("smoothing", smoothing, "smoothing passes over the DTW path", Range{0, 100});
+    v("center_poses", center_poses,
+      "time-warp on each take's deviations from its mean pose (not on the poses themselves)");
     v("root_smoothing", root_smoothing,
       "[1 2 1] passes over each take's root curve (damps frame-to-frame alignment jitter)",
       Range{0, 1000});
   }
   CycleOptions cycle() const { return {min_cycle_frames, max_closure_ratio}; }
-  WarpOptions warp() const { return {oversample, velocity_weight, slope_penalty, smoothing}; }
+  WarpOptions warp() const {
+    return {oversample, velocity_weight, slope_penalty, smoothing, center_poses};
+  }
 };
 
 // One take of a registered class.
