@@ -2,7 +2,9 @@
 // The session folder (see README "The session folder") and its session.yaml.
 #include <yaml-cpp/yaml.h>
 
+#include <array>
 #include <filesystem>
+#include <string_view>
 #include <string>
 #include <vector>
 
@@ -36,6 +38,19 @@ struct TransitionConfig {
     v("to", to, "target motion class");
   }
 };
+
+// Stage outputs that ground truth can stand for: `fourd-validate --prepare-oracle` derives
+// oracle/<stage>/ for each of these from ground_truth/. An oracle run of a stage reads these
+// from oracle/ (so it carries none of the errors of the stages before it), and any other input
+// from the oracle run of the stage that writes it (motionspace_oracle reads timewarp_oracle).
+inline constexpr std::array<std::string_view, 3> kGroundTruthStandIns = {"segment", "reconstruct",
+                                                                        "align"};
+inline bool ground_truth_stands_in_for(std::string_view stage) {
+  for (std::string_view s : kGroundTruthStandIns) {
+    if (s == stage) return true;
+  }
+  return false;
+}
 
 struct SessionConfig {
   std::string name = "session";

@@ -268,14 +268,17 @@ std::vector<StageSpec> with_oracle_variants(const fs::path& session_root,
     variant.arguments = {"--oracle"};
     variant.outputs = {oracle_variant_name(stage.name)};
     variant.supports_oracle = false;
-    // The same rule as stage_input_dir() in the stages: the oracle run of the producing stage
-    // when there is one, else the ground-truth-derived copy under oracle/.
+    // The same rule as stage_input_dir() in the stages: what ground truth stands in for comes
+    // from oracle/ (the stage then inherits no error); otherwise the oracle run of the producing
+    // stage when there is one, else the copy under oracle/.
     for (auto& input : variant.inputs) {
       auto p = producer.find(input);
       if (p == producer.end()) continue;
       std::error_code ec;
       std::string chained = oracle_variant_name(input);
-      if (oracle.count(p->second) || fs::is_directory(session_root / chained, ec)) {
+      if (ground_truth_stands_in_for(input)) {
+        input = std::string(kOracleFolder) + "/" + input;
+      } else if (oracle.count(p->second) || fs::is_directory(session_root / chained, ec)) {
         input = chained;
       } else {
         input = std::string(kOracleFolder) + "/" + input;

@@ -13,8 +13,10 @@
 // reading inputs derived from ground truth and writing X_oracle/, so validation can report the
 // pipeline and the oracle numbers side by side. The ground-truth-derived inputs are made by the
 // step "oracle" (`fourd-validate --prepare-oracle`, writing oracle/segment, oracle/reconstruct
-// and oracle/align); an oracle variant reads those, or the _oracle output of the oracle variant
-// of its input stage further down the chain (timewarp_oracle -> motionspace_oracle ...). A stage is skipped
+// and oracle/align); an oracle variant reads those where ground truth stands in for its input
+// (kGroundTruthStandIns: timewarp_oracle reads oracle/align, so it inherits no alignment
+// error), and otherwise the output of its input stage's oracle variant (motionspace_oracle
+// reads timewarp_oracle). A stage is skipped
 // when all of these still match; it runs when any differs, when its record is missing (the
 // driver deletes the record before starting a stage, so a crashed run never looks complete),
 // when an upstream stage ran in the same invocation, or when --force is given.

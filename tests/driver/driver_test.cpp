@@ -4,6 +4,8 @@
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+
+#include <map>
 #include <sys/stat.h>
 #include <sys/wait.h>
 
@@ -382,6 +384,25 @@ TEST_F(DriverTest, StatusReportsDoneChangedAndNotRun) {
   // copy itself is unchanged, but make will rerun before it.
   EXPECT_EQ(changed[1].state, StageStatus::State::kChanged);
   EXPECT_EQ(changed[1].detail, "upstream stage make will rerun");
+}
+
+// Oracle variants of the real stage table read ground truth wherever it can stand in for their
+// input (so each inherits no error from the stages before it), and chain otherwise.
+TEST_F(DriverTest, OracleVariantsReadGroundTruthWhereItStandsIn) {
+  write_yaml("name: test\noracle: [align, timewarp, motionspace, graph]\n");
+  std::vector<StageSpec> built;
+  for (const auto& s : stage_table()) {
+    if (s.name != "synth" && s.name != "texture") built.push_back(s);
+  }
+  const Session session = Session::open(session_);
+  std::map<std::string, std::vector<std::string>> inputs;
+  for (const auto& s : plan_run(session, built, RunRequest{})) inputs[s.name] = s.inputs;
+  ASSERT_TRUE(inputs.count("align_oracle") && inputs.count("timewarp_oracle"));
+  EXPECT_EQ(inputs["align_oracle"], (std::vector<std::string>{"oracle/reconstruct"}));
+  EXPECT_EQ(inputs["timewarp_oracle"], (std::vector<std::string>{"oracle/align"}));
+  EXPECT_EQ(inputs["motionspace_oracle"], (std::vector<std::string>{"timewarp_oracle"}));
+  EXPECT_EQ(inputs["graph_oracle"][0], "motionspace_oracle");
+  EXPECT_TRUE(inputs.count("oracle"));  // the preparation step runs before them
 }
 
 class SynthDriverTest : public DriverTest {
