@@ -43,10 +43,10 @@ struct TransitionConfig {
 // oracle/<stage>/ for each of these from ground_truth/. An oracle run of a stage reads these
 // from oracle/ (so it carries none of the errors of the stages before it), and any other input
 // from the oracle run of the stage that writes it (motionspace_oracle reads timewarp_oracle).
-inline constexpr std::array<std::string_view, 3> kGroundTruthStandIns = {"segment", "reconstruct",
-                                                                        "align"};
-inline bool ground_truth_stands_in_for(std::string_view stage) {
-  for (std::string_view s : kGroundTruthStandIns) {
+inline constexpr std::array<std::string_view, 3> kPreparedOracleInputs = {
+    "segment", "reconstruct", "align"};
+inline bool is_prepared_oracle_input(std::string_view stage) {
+  for (std::string_view s : kPreparedOracleInputs) {
     if (s == stage) return true;
   }
   return false;

@@ -276,7 +276,7 @@ std::vector<StageSpec> with_oracle_variants(const fs::path& session_root,
       if (p == producer.end()) continue;
       std::error_code ec;
       std::string chained = oracle_variant_name(input);
-      if (ground_truth_stands_in_for(input)) {
+      if (is_prepared_oracle_input(input)) {
         input = std::string(kOracleFolder) + "/" + input;
       } else if (oracle.count(p->second) || fs::is_directory(session_root / chained, ec)) {
         input = chained;

@@ -14,7 +14,7 @@
 // pipeline and the oracle numbers side by side. The ground-truth-derived inputs are made by the
 // step "oracle" (`fourd-validate --prepare-oracle`, writing oracle/segment, oracle/reconstruct
 // and oracle/align); an oracle variant reads those where ground truth stands in for its input
-// (kGroundTruthStandIns: timewarp_oracle reads oracle/align, so it inherits no alignment
+// (kPreparedOracleInputs: timewarp_oracle reads oracle/align, so it inherits no alignment
 // error), and otherwise the output of its input stage's oracle variant (motionspace_oracle
 // reads timewarp_oracle). A stage is skipped
 // when all of these still match; it runs when any differs, when its record is missing (the

@@ -40,7 +40,7 @@ std::filesystem::path stage_input_dir(const Session& session, const StageArgs& a
   // Ground truth itself where it can stand in for the input (the stage inherits no error);
   // else the oracle run of the input stage when there is one, else its copy under oracle/
   // (the same rule as the driver's with_oracle_variants()).
-  if (ground_truth_stands_in_for(input_stage)) return session.dir("oracle") / input_stage;
+  if (is_prepared_oracle_input(input_stage)) return session.dir("oracle") / input_stage;
   std::filesystem::path chained = session.dir(input_stage + "_oracle");
   std::error_code ec;
   if (std::filesystem::is_directory(chained, ec)) return chained;

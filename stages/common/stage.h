@@ -44,7 +44,7 @@ struct StageInfo {
 
 // Folder a stage reads the outputs of `input_stage` from: <session>/<input_stage>; in oracle
 // mode <session>/oracle/<input_stage> (made from ground truth by `fourd-validate
-// --prepare-oracle`) when ground truth stands in for that stage (kGroundTruthStandIns), else
+// --prepare-oracle`) when ground truth stands in for that stage (kPreparedOracleInputs), else
 // <session>/<input_stage>_oracle when the input stage ran on oracle inputs too.
 std::filesystem::path stage_input_dir(const Session& session, const StageArgs& args,
                                       const std::string& input_stage);
