@@ -16,12 +16,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-StageArgs oracle_args(const fs::path& root) {
-  StageArgs args;
-  args.session_dir = root.string();
-  args.oracle = true;
-  return args;
-}
+using test::oracle_args;
 
 void run(const fs::path& root) {
   const Session session = Session::open(root);

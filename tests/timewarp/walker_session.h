@@ -13,9 +13,18 @@
 #include <vector>
 
 #include "pipeline/core/mesh_io.h"
+#include "stages/common/stage.h"
 #include "tests/timewarp/walker.h"
 
 namespace fourd::test {
+
+// Stage arguments that run a stage of the walker session in oracle mode.
+inline StageArgs oracle_args(const std::filesystem::path& root) {
+  StageArgs args;
+  args.session_dir = root.string();
+  args.oracle = true;
+  return args;
+}
 
 class WalkerSession {
  public:
