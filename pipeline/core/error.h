@@ -30,6 +30,14 @@ class InputError : public Error {
   ExitCode exit_code() const override { return kExitInput; }
 };
 
+// A command-line mistake: an unknown name, contradictory options, text that is not a frame
+// range.
+class UsageError : public Error {
+ public:
+  using Error::Error;
+  ExitCode exit_code() const override { return kExitUsage; }
+};
+
 // An unknown key or an out-of-range value in a config file or on the command line.
 class ConfigError : public Error {
  public:

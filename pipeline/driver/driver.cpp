@@ -13,6 +13,7 @@
 #include <ctime>
 #include <nlohmann/json.hpp>
 
+#include "pipeline/core/colmap_model.h"
 #include "pipeline/core/files.h"
 #include "pipeline/core/log.h"
 
@@ -163,8 +164,11 @@ const std::vector<StageSpec>& stage_table() {
   // capture. Validate reads every stage's outputs plus the ground truth.
   static const std::vector<StageSpec> table = {
       {"synth", {}, {"capture", "calibration", "ground_truth"}, false, {}},
-      {"segment", {"capture", "calibration"}, {"segment"}, false, {}},
-      {"reconstruct", {"capture", "segment", "calibration"}, {"reconstruct"}, true, {}},
+      {"segment", {"capture", "calibration"}, {"segment"}, false, {}, {}, {},
+       {"{take}/{camera}/{frame}.png"}},
+      // Its per-frame record (.json) is written last and also for a frame that failed.
+      {"reconstruct", {"capture", "segment", "calibration"}, {"reconstruct"}, true, {}, {}, {},
+       {"{take}/{frame}.json"}},
       {"align", {"reconstruct"}, {"align"}, true, {}},
       {"timewarp", {"align"}, {"timewarp"}, true, {}},
       {"motionspace", {"timewarp"}, {"motionspace"}, true, {}},
@@ -443,10 +447,55 @@ std::vector<StageSpec> plan_run(const Session& session, const std::vector<StageS
   return with_oracle_variants(session.root(), plan, built, oracle);
 }
 
+std::string Job::name() const {
+  if (finish) return stage + ".finish";
+  const std::string suffix = selection.job_suffix();
+  return suffix.empty() ? stage : stage + "." + suffix;
+}
+
+std::vector<std::string> Job::arguments() const {
+  if (finish) return {"--finish"};
+  std::vector<std::string> out;
+  if (!selection.take.empty()) out.insert(out.end(), {"--take", selection.take});
+  if (!selection.ranges.empty()) out.insert(out.end(), {"--frames", selection.frames_text()});
+  return out;
+}
+
+std::vector<Job> stage_jobs(const StageSpec& stage, const CaptureIndex& capture,
+                            int frames_per_job) {
+  if (!stage.per_frame()) return {Job{stage.name, {}, false}};
+  if (frames_per_job < 0) throw UsageError("--frames-per-job must be 0 or more");
+  std::vector<Job> jobs;
+  for (const TakeCapture& take : capture.takes) {
+    const int step = frames_per_job > 0 ? frames_per_job : take.frame_count;
+    for (int first = 0; first < take.frame_count; first += step) {
+      Job job{stage.name, {take.name, {{first, std::min(first + step, take.frame_count) - 1}}}, false};
+      jobs.push_back(std::move(job));
+    }
+  }
+  jobs.push_back(Job{stage.name, {}, true});
+  return jobs;
+}
+
+CaptureIndex session_capture(const Session& session) {
+  std::error_code ec;
+  if (!fs::is_directory(session.capture_dir(), ec)) {
+    throw InputError(fmt::format("{}: no capture yet (a synthetic session makes it with "
+                                 "`fourd run {} --only synth`)",
+                                 session.capture_dir().string(), session.root().string()));
+  }
+  CaptureIndex capture = scan_capture(session, read_colmap_model(session.calibration_dir()));
+  if (capture.takes.empty()) {
+    throw InputError(fmt::format("{}: no takes", session.capture_dir().string()));
+  }
+  return capture;
+}
+
 int run_stage_process(const StageSpec& stage, const fs::path& session_root, int threads,
-                      bool verbose) {
+                      bool verbose, const std::vector<std::string>& job_arguments) {
   std::vector<std::string> args = {stage.executable.string(), session_root.string()};
   args.insert(args.end(), stage.arguments.begin(), stage.arguments.end());
+  args.insert(args.end(), job_arguments.begin(), job_arguments.end());
   if (threads > 0) {
     args.push_back("--threads");
     args.push_back(std::to_string(threads));
@@ -524,7 +573,20 @@ RunResult run_pipeline(const fs::path& session_dir, const std::vector<StageSpec>
     event.reason = reason;
     emit(StageEvent::Kind::kStarted);
     log::Timer timer;
-    int code = run_stage_process(stage, root, request.threads, request.verbose);
+    // A per-frame stage runs as its jobs, one after the other (each uses every thread).
+    const std::vector<Job> jobs =
+        stage_jobs(stage, stage.per_frame() ? session_capture(session) : CaptureIndex{},
+                   request.frames_per_job);
+    int code = 0;
+    for (const Job& job : jobs) {
+      code = run_stage_process(stage, root, request.threads, request.verbose, job.arguments());
+      if (code != 0) {
+        event.log_file = session.logs_dir() / job.log_name();
+        event.reason = fmt::format("job {} failed", job.name());
+        break;
+      }
+    }
+    event.jobs = jobs.size();
     event.seconds = timer.seconds();
     if (code != 0) {
       event.exit_code = code;

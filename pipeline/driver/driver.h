@@ -29,7 +29,9 @@
 #include <string>
 #include <vector>
 
+#include "pipeline/core/capture.h"
 #include "pipeline/core/error.h"
+#include "pipeline/core/frame_selection.h"
 #include "pipeline/core/session.h"
 
 namespace fourd::driver {
@@ -37,11 +39,7 @@ namespace fourd::driver {
 namespace fs = std::filesystem;
 
 // A command-line mistake (unknown stage name, contradictory options): exit code kExitUsage.
-class UsageError : public Error {
- public:
-  using Error::Error;
-  ExitCode exit_code() const override { return kExitUsage; }
-};
+using fourd::UsageError;
 
 // One stage of the pipeline and the session folders it reads and writes.
 struct StageSpec {
@@ -52,6 +50,11 @@ struct StageSpec {
   fs::path executable;               // empty in stage_table(); set by built_stages()
   std::vector<std::string> arguments;  // extra command-line arguments (oracle runs)
   std::string options_stage;           // whose stages.<name> options it sees; empty: name
+  // A per-frame stage (runs as frame-range jobs, see stage_jobs): the files each frame's job
+  // writes, relative to the first output folder, with {take}, {camera} and {frame} (000000)
+  // standing for the frame's names. Empty: the stage is one job.
+  std::vector<std::string> frame_outputs;
+  bool per_frame() const { return !frame_outputs.empty(); }
 };
 
 // The folder of ground-truth-derived inputs, written by the "oracle" step.
@@ -127,6 +130,31 @@ void write_record(const fs::path& path, const CompletionRecord& record);
 std::string staleness(const fs::path& session_root, const StageSpec& stage,
                       const StageFingerprint& current);
 
+// One job of a stage, the unit both `fourd run` and the generated workflow execute: the whole
+// stage; for a per-frame stage, one take's range of frames; or the --finish job that checks a
+// split stage's frames and writes its reports.
+struct Job {
+  std::string stage;         // the stage (or oracle variant) name
+  FrameSelection selection;  // a range job: one take, one range
+  bool finish = false;
+
+  // "reconstruct", "reconstruct.walk.0-7", "reconstruct.finish"
+  std::string name() const;
+  // Added to the stage's command line: --take T --frames A:B, or --finish.
+  std::vector<std::string> arguments() const;
+  // Its log, relative to the session's logs/ (the stage writes it).
+  std::string log_name() const { return job_log_name(stage, selection); }
+};
+
+// The jobs `stage` runs as, in order: one job for a stage that is not per-frame; otherwise
+// every take cut into ranges of at most `frames_per_job` frames (0: one range per take),
+// then the finish job.
+std::vector<Job> stage_jobs(const StageSpec& stage, const CaptureIndex& capture,
+                            int frames_per_job);
+
+// The session's capture (takes and frame counts, checked as scan_capture does).
+CaptureIndex session_capture(const Session& session);
+
 // What `fourd run` was asked to do.
 struct RunRequest {
   std::string only;              // run just this stage
@@ -136,6 +164,7 @@ struct RunRequest {
                                  // those listed in session.yaml's `oracle:`
   int threads = 0;               // passed to the stages; 0 = all cores
   bool verbose = false;          // passed to the stages
+  int frames_per_job = 0;        // per-frame stages: frames per job (0: one job per take)
 };
 
 // Whether synth belongs to this session's runs: only when session.yaml has a stages.synth
@@ -150,10 +179,10 @@ std::vector<StageSpec> plan_run(const Session& session, const std::vector<StageS
                                 const RunRequest& request);
 
 // Runs one stage executable as a child process (stderr and stdout shared with the driver):
-// `<executable> <session> [arguments...] [--threads N] [-v]`. Returns its exit code,
+// `<executable> <session> [arguments...] [job arguments...] [--threads N] [-v]`. Returns its exit code,
 // 128 + signal number when it was killed. Throws IoError when it cannot be started.
 int run_stage_process(const StageSpec& stage, const fs::path& session_root, int threads,
-                      bool verbose);
+                      bool verbose, const std::vector<std::string>& job_arguments = {});
 
 struct StageEvent {
   enum class Kind { kSkipped, kStarted, kFinished, kFailed };
@@ -164,7 +193,8 @@ struct StageEvent {
   std::string reason;  // why it runs, or why it is skipped
   double seconds = 0;  // kFinished/kFailed: duration
   int exit_code = 0;   // kFailed
-  fs::path log_file;   // the stage's own log
+  fs::path log_file;   // the stage's own log (kFailed: the failing job's)
+  std::size_t jobs = 1;  // kFinished: the jobs the stage ran as
 };
 
 struct RunResult {

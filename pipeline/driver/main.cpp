@@ -8,6 +8,7 @@
 
 #include "pipeline/core/log.h"
 #include "pipeline/driver/driver.h"
+#include "pipeline/driver/workflow.h"
 
 namespace {
 
@@ -36,10 +37,12 @@ void print_event(const StageEvent& e) {
       log::info("[{}/{}] {} ... ({})", e.index, e.count, e.stage, e.reason);
       break;
     case StageEvent::Kind::kFinished:
-      log::info("[{}/{}] {} done in {:.1f} s", e.index, e.count, e.stage, e.seconds);
+      log::info("[{}/{}] {} done in {:.1f} s{}", e.index, e.count, e.stage, e.seconds,
+                e.jobs > 1 ? fmt::format(" ({} jobs)", e.jobs) : "");
       break;
     case StageEvent::Kind::kFailed:
-      log::error("[{}/{}] {} failed after {:.1f} s", e.index, e.count, e.stage, e.seconds);
+      log::error("[{}/{}] {} failed after {:.1f} s ({})", e.index, e.count, e.stage, e.seconds,
+                 e.reason);
       break;
   }
 }
@@ -109,10 +112,28 @@ int main(int argc, char** argv) {
       ->type_name("STAGE");
   run->add_option("--threads", request.threads, "worker threads per stage (0 = all cores)")
       ->check(CLI::NonNegativeNumber);
+  run->add_option("--frames-per-job", request.frames_per_job,
+                  "per-frame stages (segment, reconstruct) run as jobs of at most N frames of one\n"
+                  "take, then a --finish job (0 = one job per take)")
+      ->check(CLI::NonNegativeNumber);
   run->add_flag("-v,--verbose", request.verbose, "debug messages (also from the stages)");
   run->footer("stages built, in order: " + stage_list(built) +
               "\nEach stage logs to <session>/logs/<stage>.log. Without a stages.synth section in "
               "session.yaml,\ncapture/ is a real capture and synth is not run.");
+
+  WorkflowRequest workflow_request;
+  std::vector<std::string> workflow_oracle;
+  CLI::App* workflow = app.add_subcommand(
+      "workflow",
+      "write a Snakemake workflow of the session's jobs to <session>/workflow/ (Snakefile,\n"
+      "config.yaml, profiles/slurm/): `snakemake -s <session>/workflow/Snakefile --cores N`");
+  workflow->add_option("session", session_dir, "session folder (holds session.yaml)")->required();
+  workflow->add_option("--frames-per-job", workflow_request.frames_per_job,
+                       "per-frame stages: frames of one take per job")
+      ->check(CLI::PositiveNumber);
+  workflow->add_option("--oracle", workflow_oracle, "as for `fourd run`")
+      ->allow_extra_args(false)
+      ->type_name("STAGE");
 
   CLI::App* status = app.add_subcommand("status", "show the state of every stage of a session");
   status->add_option("session", session_dir, "session folder (holds session.yaml)")->required();
@@ -133,6 +154,13 @@ int main(int argc, char** argv) {
 
   try {
     if (*run) return command_run(session_dir, request, built);
+    if (*workflow) {
+      workflow_request.oracle.insert(workflow_oracle.begin(), workflow_oracle.end());
+      WorkflowFiles files = write_workflow(session_dir, built, workflow_request);
+      log::info("fourd: wrote {} ({} jobs), {} and the Slurm profile {}", files.snakefile.string(),
+                files.jobs, files.config.string(), files.slurm_profile.string());
+      return kExitOk;
+    }
     return command_status(session_dir, built);
   } catch (const Error& e) {
     log::error("fourd: {}", e.what());

@@ -8,31 +8,6 @@
 #include "pipeline/core/log.h"
 
 namespace fourd {
-namespace {
-
-FrameSelection parse_frames(const std::string& take, const std::string& range) {
-  FrameSelection sel;
-  sel.take = take;
-  if (range.empty()) return sel;
-  auto colon = range.find(':');
-  try {
-    if (colon == std::string::npos) {
-      sel.first = sel.last = std::stoi(range);
-    } else {
-      std::string a = range.substr(0, colon), b = range.substr(colon + 1);
-      sel.first = a.empty() ? 0 : std::stoi(a);
-      sel.last = b.empty() ? -1 : std::stoi(b);
-    }
-  } catch (const std::exception&) {
-    throw ConfigError(fmt::format("--frames '{}': expected FIRST:LAST, FIRST: or N", range));
-  }
-  if (sel.first < 0 || (sel.last >= 0 && sel.last < sel.first)) {
-    throw ConfigError(fmt::format("--frames '{}': empty or negative range", range));
-  }
-  return sel;
-}
-
-}  // namespace
 
 std::filesystem::path stage_input_dir(const Session& session, const StageArgs& args,
                                       const std::string& input_stage) {
@@ -63,7 +38,14 @@ int run_stage_main(int argc, char** argv, const StageInfo& info,
   app.add_flag("-v,--verbose", args.verbose, "debug messages");
   if (info.takes_frame_range) {
     app.add_option("--take", take, "process only this take");
-    app.add_option("--frames", frames, "process only frames FIRST:LAST (inclusive)");
+    app.add_option("--frames", frames,
+                   "process only frames FIRST:LAST (inclusive; comma-separated ranges, which must "
+                   "not overlap)");
+  }
+  if (info.has_finish_job) {
+    app.add_flag("--finish", args.finish,
+                 "after jobs that each did a --take/--frames range: process no frame, check "
+                 "that every frame's output exists and write the stage's reports");
   }
   if (info.supports_oracle) {
     app.add_flag("--oracle", args.oracle,
@@ -88,10 +70,14 @@ int run_stage_main(int argc, char** argv, const StageInfo& info,
                                                     args.threads);
   }
   try {
-    args.selection = parse_frames(take, frames);
+    args.selection = parse_frame_selection(take, frames);
+    if (args.finish && !args.selection.whole()) {
+      throw UsageError("--finish processes no frame: it takes no --take/--frames");
+    }
     Session session = Session::open(args.session_dir);
     log::open_file(session.logs_dir() /
-                   (std::string(info.name) + (args.oracle ? "_oracle" : "") + ".log"));
+                   job_log_name(std::string(info.name) + (args.oracle ? "_oracle" : ""),
+                                args.selection));
     log::info("fourd-{} on {}", info.name, session.root().string());
     log::Timer timer;
     body(session, args);

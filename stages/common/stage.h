@@ -7,19 +7,10 @@
 #include <optional>
 #include <string>
 
+#include "pipeline/core/frame_selection.h"
 #include "pipeline/core/session.h"
 
 namespace fourd {
-
-// A take and frame range, so a farm can split per-frame work ("--take walk --frames 10:20").
-struct FrameSelection {
-  std::string take;       // empty: every take
-  int first = 0;          // first frame (inclusive)
-  int last = -1;          // last frame (inclusive); -1: to the end
-  bool selects(const std::string& t, int frame) const {
-    return (take.empty() || take == t) && frame >= first && (last < 0 || frame <= last);
-  }
-};
 
 struct StageArgs {
   std::string session_dir;
@@ -27,7 +18,10 @@ struct StageArgs {
   // stage_input_dir) instead of the previous stage's outputs, and write to <stage>_oracle/ so
   // pipeline and oracle results coexist.
   bool oracle = false;
-  FrameSelection selection;
+  FrameSelection selection;  // --take/--frames; checked against the capture by the stage
+  // --finish: the last job of a stage split into frame-range jobs: no frame is processed; the
+  // stage checks that every frame's output exists and writes its reports from them.
+  bool finish = false;
   int threads = 0;     // 0: all cores
   bool verbose = false;
 };
@@ -40,6 +34,8 @@ struct StageInfo {
   // The stage's section of session.yaml (stages.<name>) with defaults and help, shown at the
   // end of --help: describe_options(TheOptions{}).
   std::string options_help;
+  // Accepts --finish (a per-frame stage split into jobs by the driver or a workflow).
+  bool has_finish_job = false;
 };
 
 // Folder a stage reads the outputs of `input_stage` from: <session>/<input_stage>; in oracle
@@ -52,8 +48,9 @@ std::filesystem::path stage_input_dir(const Session& session, const StageArgs& a
 std::filesystem::path stage_output_dir(const Session& session, const StageArgs& args,
                                        const std::string& stage);
 
-// Parses the common options plus those `add_options` registers, opens logs/<name>.log in the
-// session, runs `body`, and returns the process exit code. Never throws.
+// Parses the common options plus those `add_options` registers, opens the job's log
+// (logs/<job_log_name>) in the session, runs `body`, and returns the process exit code. Never
+// throws.
 int run_stage_main(int argc, char** argv, const StageInfo& info,
                    const std::function<void(CLI::App&)>& add_options,
                    const std::function<void(const Session&, const StageArgs&)>& body);

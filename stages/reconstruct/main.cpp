@@ -9,8 +9,10 @@ int main(int argc, char** argv) {
       "Multi-view reconstruction: visual hull of segment/, refined by hull-guided plane-sweep "
       "stereo and depth-map fusion, remeshed; writes reconstruct/<take>/<frame>.ply, "
       "reconstruct/report.json and (when the whole session is processed) a COLMAP check of the "
-      "calibration in reconstruct/calibration_check/.",
+      "calibration in reconstruct/calibration_check/. Split into jobs (--take/--frames), each "
+      "writes only its frames; the --finish job then writes the report and the check.",
       /*takes_frame_range=*/true, /*supports_oracle=*/true};
+  info.has_finish_job = true;
   fourd::reconstruct::CalibrationCheckRequest check;
   std::string check_frame;
   auto options = [&](CLI::App& app) {

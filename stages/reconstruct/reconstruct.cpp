@@ -367,6 +367,45 @@ void write_report(const fs::path& out_dir, const std::vector<TakeFrames>& takes,
   write_file_atomic(out_dir / "report.json", report.dump(1) + "\n");
 }
 
+void write_options_used(const fs::path& out_dir, const ReconstructOptions& options) {
+  YAML::Emitter used;
+  used << to_yaml(options);
+  write_file_atomic(out_dir / "options.yaml", std::string(used.c_str()) + "\n");
+}
+
+// --finish: every selected frame has its record (written last for each frame, also for a
+// frame that could not be reconstructed).
+void check_frame_records(const fs::path& out_dir, const std::vector<TakeFrames>& takes,
+                         const std::vector<Item>& items) {
+  for (const Item& item : items) {
+    const fs::path p = out_dir / takes[item.take].name / (frame_name(item.frame) + ".json");
+    std::error_code ec;
+    if (!fs::is_regular_file(p, ec)) {
+      throw InputError(fmt::format("reconstruct --finish: {} is missing (take {} frame {}): its "
+                                   "job has not run or failed",
+                                   p.string(), takes[item.take].name, item.frame));
+    }
+  }
+}
+
+// A job's upstream output: the silhouette of every camera that recorded the frame.
+void check_silhouettes(const Session& session, const Rig& rig, const std::vector<TakeFrames>& takes,
+                       const std::vector<Item>& items, const fs::path& segment_dir) {
+  for (const Item& item : items) {
+    const std::string& take = takes[item.take].name;
+    for (const Camera& cam : rig.cameras) {
+      std::error_code ec;
+      const fs::path sil = segment_dir / take / cam.name / (frame_name(item.frame) + ".png");
+      if (fs::is_regular_file(session.capture_image(take, cam.name, item.frame), ec) &&
+          !fs::is_regular_file(sil, ec)) {
+        throw InputError(fmt::format("{} is missing (take {} camera {} frame {}): run "
+                                     "fourd-segment on these frames first",
+                                     sil.string(), take, cam.name, item.frame));
+      }
+    }
+  }
+}
+
 void run_calibration_check(const Session& session, const Rig& rig,
                            const std::vector<TakeFrames>& takes, const ReconstructOptions& options,
                            const CalibrationCheckRequest& request, const fs::path& out_dir) {
@@ -461,13 +500,13 @@ void run_reconstruct(const Session& session, const StageArgs& args,
                                  session.capture_dir().string()));
   }
 
+  // The frames of this job and their inputs, checked before any work.
   const FrameSelection& sel = args.selection;
-  const bool whole_session = sel.take.empty() && sel.first == 0 && sel.last < 0;
-  if (request.only || (options.calibration_check.enabled && whole_session)) {
-    run_calibration_check(session, rig, takes, options, request, out_dir);
+  {
+    CaptureIndex index;
+    for (const TakeFrames& t : takes) index.takes.push_back({t.name, t.frames, {}});
+    check_frame_selection(sel, index);
   }
-  if (request.only) return;
-
   std::vector<Item> items;
   for (std::size_t t = 0; t < takes.size(); ++t) {
     for (int f = 0; f < takes[t].frames; ++f) {
@@ -475,8 +514,26 @@ void run_reconstruct(const Session& session, const StageArgs& args,
     }
   }
   if (items.empty()) {
-    throw InputError(fmt::format("--take '{}' --frames {}:{} selects no frame of the capture",
-                                 sel.take, sel.first, sel.last));
+    throw InputError(fmt::format("--take '{}' --frames {} selects no frame of the capture",
+                                 sel.take, sel.frames_text()));
+  }
+  if (args.finish) {
+    check_frame_records(out_dir, takes, items);
+  } else if (!request.only) {
+    check_silhouettes(session, rig, takes, items, segment_dir);
+  }
+
+  if (request.only || (options.calibration_check.enabled && sel.whole())) {
+    run_calibration_check(session, rig, takes, options, request, out_dir);
+  }
+  if (request.only) return;
+  if (args.finish) {
+    // The jobs' frames are all there: the report adds up their per-frame records.
+    write_report(out_dir, takes, {{"frames", items.size()}, {"split_into_jobs", true}});
+    write_options_used(out_dir, options);
+    log::info("reconstruct: report over {} frame(s) written to {}", items.size(),
+              (out_dir / "report.json").string());
+    return;
   }
   log::info("reconstructing {} frame(s) of {} take(s) from {} cameras, method {}", items.size(),
             takes.size(), rig.cameras.size(), options.method);
@@ -574,8 +631,13 @@ void run_reconstruct(const Session& session, const StageArgs& args,
                         tbb::simple_partitioner());
     });
   }
+  // Only this job's work folders: other jobs may be running beside it.
   std::error_code ec;
-  fs::remove_all(out_dir / "work", ec);
+  for (const Item& item : items) {
+    fs::remove_all(out_dir / "work" / takes[item.take].name / frame_name(item.frame), ec);
+  }
+  for (const TakeFrames& t : takes) fs::remove(out_dir / "work" / t.name, ec);  // when empty
+  fs::remove(out_dir / "work", ec);
 
   const double seconds = wall.seconds();
   nlohmann::json run = {{"frames", items.size()},
@@ -584,10 +646,13 @@ void run_reconstruct(const Session& session, const StageArgs& args,
                         {"seconds_per_frame", seconds / items.size()},
                         {"threads", tbb::this_task_arena::max_concurrency()},
                         {"method", options.method}};
-  write_report(out_dir, takes, run);
-  YAML::Emitter used;
-  used << to_yaml(options);
-  write_file_atomic(out_dir / "options.yaml", std::string(used.c_str()) + "\n");
+  if (sel.whole()) {
+    write_report(out_dir, takes, run);
+    write_options_used(out_dir, options);
+  } else {
+    log::info("a job of a split run: reconstruct/report.json is left to `fourd-reconstruct "
+              "--finish`");
+  }
   log::info("reconstructed {} of {} frame(s) in {:.1f} s ({:.2f} s per frame)",
             items.size() - failed.load(), items.size(), seconds, seconds / items.size());
   if (failed.load() == items.size()) {

@@ -3,7 +3,6 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
-#include <mutex>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -196,6 +195,36 @@ void run_segment(const Session& session, const StageArgs& args) {
     throw InputError(fmt::format("{}: no takes to segment", session.capture_dir().string()));
   }
   const fs::path out_dir = session.dir("segment");
+  auto silhouette_path = [&](const std::string& take, std::size_t camera, int frame) {
+    return out_dir / take / cameras[camera].name / (frame_name(frame) + ".png");
+  };
+
+  // The frames of this job, checked before any work.
+  check_frame_selection(args.selection, capture);
+  std::vector<Item> items;
+  for (std::size_t t = 0; t < capture.takes.size(); ++t) {
+    for (int f = 0; f < capture.takes[t].frame_count; ++f) {
+      if (args.selection.selects(capture.takes[t].name, f)) items.push_back({t, f});
+    }
+  }
+  if (items.empty()) {
+    throw InputError(fmt::format("--take '{}' --frames {} selects no frame of the capture",
+                                 args.selection.take, args.selection.frames_text()));
+  }
+  if (args.finish) {
+    for (const Item& item : items) {
+      for (std::size_t c = 0; c < cameras.size(); ++c) {
+        const fs::path p = silhouette_path(capture.takes[item.take].name, c, item.frame);
+        std::error_code ec;
+        if (!fs::is_regular_file(p, ec)) {
+          throw InputError(fmt::format("segment --finish: {} is missing (take {} camera {} frame "
+                                       "{}): its job has not run or failed",
+                                       p.string(), capture.takes[item.take].name,
+                                       cameras[c].name, item.frame));
+        }
+      }
+    }
+  }
 
   // Learn the key per camera from frames spread over every take.
   std::vector<KeyModel> keys(cameras.size());
@@ -228,44 +257,47 @@ void run_segment(const Session& session, const StageArgs& args) {
     }
   }
 
-  std::vector<Item> items;
-  for (std::size_t t = 0; t < capture.takes.size(); ++t) {
-    for (int f = 0; f < capture.takes[t].frame_count; ++f) {
-      if (args.selection.selects(capture.takes[t].name, f)) items.push_back({t, f});
-    }
-  }
-  if (!args.selection.take.empty() && items.empty()) {
-    throw InputError(fmt::format("--take {} --frames: selects no frame of the capture",
-                                 args.selection.take));
-  }
   std::vector<std::vector<Coverage>> coverage(capture.takes.size(),
                                               std::vector<Coverage>(cameras.size()));
-  std::mutex mutex;
-  log::Progress progress("segmenting frames", items.size());
+  std::vector<double> fractions(items.size() * cameras.size(), 0.0);
+  log::Progress progress(args.finish ? "summarising silhouettes" : "segmenting frames",
+                         items.size());
   tbb::parallel_for(std::size_t{0}, items.size(), [&](std::size_t i) {
     const Item& item = items[i];
     const std::string& take = capture.takes[item.take].name;
     for (std::size_t c = 0; c < cameras.size(); ++c) {
-      cv::Mat image = read_capture_image(session, cameras[c], take, item.frame);
-      cv::Mat mask = key_silhouette(image, keys[c], options);
+      const fs::path path = silhouette_path(take, c, item.frame);
+      cv::Mat mask;
+      if (args.finish) {
+        mask = read_image(path, cv::IMREAD_GRAYSCALE);
+      } else {
+        mask = key_silhouette(read_capture_image(session, cameras[c], take, item.frame), keys[c],
+                              options);
+      }
       double fraction = cv::countNonZero(mask) / static_cast<double>(mask.total());
-      if (fraction < options.warn_foreground_min || fraction > options.warn_foreground_max) {
+      if (!args.finish &&
+          (fraction < options.warn_foreground_min || fraction > options.warn_foreground_max)) {
         log::warn("take {} camera {} frame {}: foreground covers {:.2f}% of the image — check "
                   "the key or whether the camera sees the volume",
                   take, cameras[c].name, item.frame, 100 * fraction);
       }
-      write_image_atomic(out_dir / take / cameras[c].name / (frame_name(item.frame) + ".png"), mask,
-                         {cv::IMWRITE_PNG_COMPRESSION, 1});
-      std::lock_guard lock(mutex);
-      Coverage& cov = coverage[item.take][c];
+      if (!args.finish) write_image_atomic(path, mask, {cv::IMWRITE_PNG_COMPRESSION, 1});
+      fractions[i * cameras.size() + c] = fraction;
+    }
+    progress.step();
+  });
+  // Summed in frame order, so the report does not depend on the threads or the job split.
+  for (std::size_t i = 0; i < items.size(); ++i) {
+    for (std::size_t c = 0; c < cameras.size(); ++c) {
+      const double fraction = fractions[i * cameras.size() + c];
+      Coverage& cov = coverage[items[i].take][c];
       cov.sum += fraction;
       cov.min = std::min(cov.min, fraction);
       cov.max = std::max(cov.max, fraction);
       cov.frames += 1;
       cov.empty += fraction == 0;
     }
-    progress.step();
-  });
+  }
 
   // Per take and camera foreground fraction, so a bad key is visible at a glance.
   nlohmann::json report;
@@ -282,7 +314,8 @@ void run_segment(const Session& session, const StageArgs& args) {
           {"frames", cov.frames}, {"empty_frames", cov.empty}};
     }
   }
-  if (args.selection.take.empty() && args.selection.first == 0 && args.selection.last < 0) {
+  // A job of a split run leaves the reports to the --finish job (which sees every frame).
+  if (args.selection.whole()) {
     write_file_atomic(out_dir / "report.json", report.dump(1) + "\n");
     YAML::Emitter used;
     used << to_yaml(options);

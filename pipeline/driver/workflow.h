@@ -1,0 +1,51 @@
+#pragma once
+// `fourd workflow`: the session's jobs (stage_jobs, the same split `fourd run` uses) as a
+// Snakemake workflow, so an existing engine runs them on many cores or a Slurm cluster.
+//
+// Written to <session>/workflow/:
+//   Snakefile        one rule per job; it calls the stage executable with the job's
+//                    --take/--frames (or --finish), declares the job's inputs and outputs
+//                    (per-frame stages: the frames' files; other stages: a marker file
+//                    workflow/done/<stage> touched after success), its log (logs/<job>.log,
+//                    written by the stage) and its threads and memory.
+//   config.yaml      the executables' folder, and per stage the threads, memory (MB) and
+//                    run time (minutes) its jobs request; edit them for bigger sessions.
+//   profiles/slurm/  a Snakemake profile that submits every job with sbatch, requesting the
+//                    rule's threads and memory.
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "pipeline/driver/driver.h"
+
+namespace fourd::driver {
+
+// What one job of a stage asks of a machine.
+struct JobCost {
+  int threads = 1;
+  int mem_mb = 1000;
+  int minutes = 10;
+};
+
+// Requests per stage (options_stage name), from the peak memory and time measured per job on
+// the tiny sample (docs/scale_plan.md), with headroom. Stages not listed get JobCost{}.
+const std::map<std::string, JobCost>& default_job_costs();
+
+struct WorkflowRequest {
+  int frames_per_job = 8;  // per-frame stages: frames per job
+  std::set<std::string> oracle;  // as RunRequest::oracle
+};
+
+struct WorkflowFiles {
+  fs::path snakefile, config, slurm_profile;
+  std::size_t jobs = 0;
+};
+
+// Writes the workflow of every stage after synth (synth, when the session uses it, must have
+// made capture/ already: the jobs are cut from its takes). Throws InputError when there is no
+// capture, UsageError for a bad request.
+WorkflowFiles write_workflow(const fs::path& session_dir, const std::vector<StageSpec>& built,
+                             const WorkflowRequest& request);
+
+}  // namespace fourd::driver
