@@ -10,6 +10,7 @@ PACKAGES=(
   libtbb-dev libfmt-dev libxxhash-dev libtinygltf-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   colmap
+  snakemake
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -197,6 +197,9 @@ WorkflowFiles write_workflow(const fs::path& session_dir, const std::vector<Stag
         rules += fmt::format("    output:\n        touch({}),\n", py_string(marker(stage.name)));
       }
       rules += fmt::format("    log:\n        {},\n", py_string("logs/" + job.log_name()));
+      // Snakemake measures every job (wall time, peak memory, CPU time): the costs to request.
+      rules += fmt::format("    benchmark:\n        {},\n",
+                           py_string(fmt::format("{}/benchmarks/{}.tsv", kWorkflowFolder, job.name())));
       rules += fmt::format("    threads: config[\"stages\"][{0}][\"threads\"]\n"
                            "    resources:\n"
                            "        mem_mb=config[\"stages\"][{0}][\"mem_mb\"],\n"

@@ -7,7 +7,9 @@
 //                    --take/--frames (or --finish), declares the job's inputs and outputs
 //                    (per-frame stages: the frames' files; other stages: a marker file
 //                    workflow/done/<stage> touched after success), its log (logs/<job>.log,
-//                    written by the stage) and its threads and memory.
+//                    written by the stage), its threads and memory, and a benchmark file
+//                    (workflow/benchmarks/<job>.tsv: Snakemake's measure of its wall time,
+//                    peak memory and CPU time, from which the requests are set).
 //   config.yaml      the executables' folder, and per stage the threads, memory (MB) and
 //                    run time (minutes) its jobs request; edit them for bigger sessions.
 //   profiles/slurm/  a Snakemake profile that submits every job with sbatch, requesting the

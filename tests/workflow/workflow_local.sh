@@ -1,0 +1,152 @@
+#!/usr/bin/env bash
+# The same session processed by `fourd run` and by Snakemake (the workflow `fourd workflow`
+# writes, `snakemake --cores 2`) gives identical meshes, silhouettes, asset and metrics; the
+# stages refuse bad frame ranges and missing upstream outputs before any work; a reconstruct
+# job killed mid-frame leaves only whole files and a rerun redoes just its chunk; a frame that
+# fails reconstruction is reported by the workflow with its job's log.
+# usage: workflow_local.sh <session.yaml recipe> <work dir>
+#   (FOURD_BIN: folder of the executables; FOURD_FRAMES_PER_JOB: frames per job, default 6)
+# Leaves <work dir>/local (the `fourd run` result) for the Slurm test to compare against.
+set -euo pipefail
+recipe="$1"
+work="$2"
+bin="${FOURD_BIN:?FOURD_BIN must name the folder of the fourd executables}"
+fpj="${FOURD_FRAMES_PER_JOB:-6}"
+here="$(cd "$(dirname "$0")" && pwd)"
+rm -rf "$work"
+mkdir -p "$work/base"
+cp "$recipe" "$work/base/session.yaml"
+
+echo "== synth (shared by both runs)"
+"$bin/fourd" run "$work/base" --only synth
+cp -a "$work/base" "$work/local"
+cp -a "$work/base" "$work/snakemake"
+s="$work/snakemake"
+smk=(snakemake -s "$s/workflow/Snakefile" --show-failed-logs)
+
+echo "== fourd run"
+start=$SECONDS
+"$bin/fourd" run "$work/local"
+echo "fourd run: $((SECONDS - start)) s"
+
+echo "== fourd workflow + snakemake --cores 2"
+"$bin/fourd" workflow "$s" --frames-per-job "$fpj"
+start=$SECONDS
+"${smk[@]}" --cores 2 --quiet
+echo "snakemake --cores 2: $((SECONDS - start)) s"
+python3 "$here/compare_sessions.py" "$work/local" "$s"
+
+# expect CODE TEXT COMMAND...: the command exits with CODE and says TEXT, and no stage output
+# changed (the error came before any work).
+expect() {
+  local code="$1" text="$2"
+  shift 2
+  local before after rc=0
+  before=$(cd "$s" && find segment reconstruct -type f ! -name '.*' -newer workflow/Snakefile | sort | xargs -r sha256sum | sha256sum)
+  "$@" > "$work/expect.log" 2>&1 || rc=$?
+  after=$(cd "$s" && find segment reconstruct -type f ! -name '.*' -newer workflow/Snakefile | sort | xargs -r sha256sum | sha256sum)
+  if [ "$rc" != "$code" ] || ! grep -q -- "$text" "$work/expect.log" || [ "$before" != "$after" ]; then
+    echo "FAILED: $* exited $rc (expected $code), outputs changed: $([ "$before" = "$after" ] && echo no || echo yes)"
+    cat "$work/expect.log"
+    exit 1
+  fi
+  echo "  ok ($rc): $(grep -m1 -- "$text" "$work/expect.log" | sed 's/^.*\] //')"
+}
+
+echo "== bad input is refused before any work"
+expect 4 "has frames 0:11" "$bin/fourd-reconstruct" "$s" --take walk_slow --frames 6:14
+expect 4 "has frames 0:11" "$bin/fourd-segment" "$s" --take walk_slow --frames 12:
+expect 2 "overlap" "$bin/fourd-segment" "$s" --take walk_slow --frames 0:5,3:8
+expect 2 "empty or negative" "$bin/fourd-reconstruct" "$s" --take walk_slow --frames 5:2
+expect 4 "take 'run' is not in the capture" "$bin/fourd-reconstruct" "$s" --take run --frames 0:1
+mv "$s/segment/jump_long/cam03/000004.png" "$work/held.png"
+expect 4 "segment/jump_long/cam03/000004.png is missing" \
+  "$bin/fourd-reconstruct" "$s" --take jump_long --frames 0:5
+expect 4 "000004.png is missing" "$bin/fourd-segment" "$s" --finish
+mv "$work/held.png" "$s/segment/jump_long/cam03/000004.png"
+
+echo "== a reconstruct job killed mid-frame"
+rule=$(grep -m1 -o '^rule reconstruct_walk_fast_[0-9_]*' "$s/workflow/Snakefile" | cut -d' ' -f2)
+frames=$(echo "$rule" | sed 's/^reconstruct_walk_fast_\([0-9]*\)_\([0-9]*\)$/\1:\2/')
+touch "$work/kill_start"
+"${smk[@]}" --cores 1 --forcerun "$rule" --until "$rule" > "$work/kill.log" 2>&1 &
+runner=$!
+pid=""
+for _ in $(seq 600); do
+  # the stage process of exactly this job (its pid, then killed by that pid alone)
+  pid=$(pgrep -f -- "^[^ ]*/fourd-reconstruct \. --take walk_fast --frames $frames " || true)
+  done_frames=$(find "$s/reconstruct/walk_fast" -name '*.json' -newer "$work/kill_start" | wc -l)
+  if [ -n "$pid" ] && [ "$done_frames" -ge 1 ]; then break; fi
+  sleep 0.2
+done
+[ -n "$pid" ] || { echo "FAILED: the job of $rule never started"; cat "$work/kill.log"; exit 1; }
+kill -9 $pid
+rc=0
+wait "$runner" || rc=$?
+[ "$rc" != 0 ] || { echo "FAILED: snakemake did not notice the killed job"; exit 1; }
+echo "  killed $rule (pid $pid) after $done_frames frame(s); snakemake exited $rc"
+python3 - "$s/reconstruct" <<'PY'
+import os, sys
+# Every mesh and record present is whole: a PLY's size matches its header, a record parses.
+bad = 0
+for d, _, files in os.walk(sys.argv[1]):
+    for f in files:
+        p = os.path.join(d, f)
+        if f.startswith("."):
+            continue
+        data = open(p, "rb").read()
+        if f.endswith(".json"):
+            import json
+            try:
+                json.loads(data)
+            except ValueError:
+                print(f"half-written record {p}"); bad += 1
+        elif f.endswith(".ply"):
+            end = data.find(b"end_header\n")
+            header = data[:end].decode("ascii", "replace").split("\n")
+            counts = {l.split()[1]: int(l.split()[2]) for l in header if l.startswith("element")}
+            if end < 0 or not header[1].startswith("format binary_little_endian"):
+                continue  # ascii PLY: not checked
+            size = len(data) - end - len(b"end_header\n")
+            width = {"char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort": 2,
+                     "int16": 2, "uint16": 2, "int": 4, "uint": 4, "int32": 4, "uint32": 4,
+                     "float": 4, "float32": 4, "double": 8, "float64": 8}
+            need, element = 0, None
+            for l in header:
+                w = l.split()
+                if w and w[0] == "element":
+                    element = w[1]
+                elif w and w[0] == "property" and w[1] == "list":  # triangles
+                    need += counts[element] * (width[w[2]] + 3 * width[w[3]])
+                elif w and w[0] == "property":
+                    need += counts[element] * width[w[1]]
+            if size < need:
+                print(f"half-written mesh {p}: {size} < {need} bytes"); bad += 1
+sys.exit(1 if bad else 0)
+PY
+echo "  every mesh and record left is whole"
+"${smk[@]}" --cores 1 -n --quiet > "$work/rerun_plan.log" 2>&1
+reconstruct_jobs=$(grep -o '^reconstruct_[a-z_0-9]*' "$work/rerun_plan.log" | sort -u)
+echo "  rerun plan: $(echo $reconstruct_jobs)"
+[ "$reconstruct_jobs" = "$(printf '%s\n' "$rule" reconstruct_finish | sort -u)" ] || {
+  echo "FAILED: the rerun would redo more (or less) than the killed chunk"; cat "$work/rerun_plan.log"; exit 1; }
+# (Up to reconstruct: the stages after it would only redo what the first run did.)
+"${smk[@]}" --cores 2 --quiet --until reconstruct_finish
+python3 "$here/compare_sessions.py" "$work/local" "$s"
+
+echo "== a frame that fails reconstruction is reported with its job's log"
+oiiotool --create 320x240 1 -d uint8 -o "$work/black.png"
+for cam in "$s"/segment/walk_slow/*/; do cp "$work/black.png" "$cam/000002.png"; done
+out=$("${smk[@]}" --cores 2 --until reconstruct_finish 2>&1) || { echo "$out"; exit 1; }
+echo "$out" | grep "fourd: reconstruct: take walk_slow frame 2 failed" || {
+  echo "FAILED: the failed frame was not reported"; echo "$out"; exit 1; }
+echo "$out" | grep -q "log: logs/reconstruct.walk_slow.0-" || { echo "FAILED: no log named"; exit 1; }
+# A job whose every frame fails fails the workflow, which prints the stage's log.
+for f in "$s"/segment/walk_slow/*/0000*.png; do cp "$work/black.png" "$f"; done
+rc=0
+out=$("${smk[@]}" --cores 2 --until reconstruct_finish 2>&1) || rc=$?
+[ "$rc" != 0 ] || { echo "FAILED: a job without any reconstructable frame passed"; exit 1; }
+echo "$out" | grep -q "no frame could be reconstructed" || {
+  echo "FAILED: the stage's log was not shown"; echo "$out"; exit 1; }
+echo "  a job with no reconstructable frame fails the workflow; its log is shown"
+echo "workflow ok"
