@@ -31,7 +31,8 @@ struct JobCost {
 };
 
 // Requests per stage (options_stage name), from the peak memory and time measured per job on
-// the tiny sample (docs/scale_plan.md), with headroom. Stages not listed get JobCost{}.
+// the workflow test session (docs/scale_plan.md), with headroom; written to config.yaml, where
+// they are edited for bigger images. Stages not listed get JobCost{}.
 const std::map<std::string, JobCost>& default_job_costs();
 
 struct WorkflowRequest {
