@@ -246,6 +246,7 @@ WorkflowFiles write_workflow(const fs::path& session_dir, const std::vector<Stag
       "                       and j[2] <= s[\"frame\"] <= j[3])\n"
       "            print(f\"fourd: {{stage}}: take {{s['take']}} frame {{s['frame']}} failed: \"\n"
       "                  f\"{{s['because']}} (log: {{log}})\")\n\n"
+      "localrules: all\n\n"
       "rule all:\n"
       "{all}"
       "    default_target: True\n\n"
