@@ -155,6 +155,10 @@ std::vector<StageSpec> plan_run(const Session& session, const std::vector<StageS
 int run_stage_process(const StageSpec& stage, const fs::path& session_root, int threads,
                       bool verbose);
 
+// The defaults of every option of every built stage, as one YAML document with a `stages:`
+// mapping (what config/defaults.yaml holds), gathered from `fourd-<stage> --print-defaults`.
+std::string default_options_yaml(const std::vector<StageSpec>& built);
+
 struct StageEvent {
   enum class Kind { kSkipped, kStarted, kFinished, kFailed };
   Kind kind;

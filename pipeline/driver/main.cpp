@@ -117,6 +117,9 @@ int main(int argc, char** argv) {
   CLI::App* status = app.add_subcommand("status", "show the state of every stage of a session");
   status->add_option("session", session_dir, "session folder (holds session.yaml)")->required();
 
+  CLI::App* defaults = app.add_subcommand(
+      "defaults", "print every stage's session.yaml options with their defaults (YAML)");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -133,6 +136,10 @@ int main(int argc, char** argv) {
 
   try {
     if (*run) return command_run(session_dir, request, built);
+    if (*defaults) {
+      std::fputs(default_options_yaml(built).c_str(), stdout);
+      return kExitOk;
+    }
     return command_status(session_dir, built);
   } catch (const Error& e) {
     log::error("fourd: {}", e.what());

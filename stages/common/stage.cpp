@@ -2,7 +2,10 @@
 
 #include <tbb/global_control.h>
 
+#include <charconv>
+#include <cstdio>
 #include <memory>
+#include <string_view>
 
 #include "pipeline/core/error.h"
 #include "pipeline/core/log.h"
@@ -33,6 +36,26 @@ FrameSelection parse_frames(const std::string& take, const std::string& range) {
 }
 
 }  // namespace
+
+YAML::Node shortest_numbers(const YAML::Node& node) {
+  if (node.IsMap()) {
+    YAML::Node out(YAML::NodeType::Map);
+    for (const auto& kv : node) out[kv.first.as<std::string>()] = shortest_numbers(kv.second);
+    return out;
+  }
+  if (node.IsSequence()) {
+    YAML::Node out(YAML::NodeType::Sequence);
+    for (const auto& item : node) out.push_back(shortest_numbers(item));
+    return out;
+  }
+  if (!node.IsScalar()) return node;
+  const std::string& text = node.Scalar();
+  if (text.find_first_of(".eE") == std::string::npos) return node;  // integers, words
+  double value = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (ec != std::errc() || end != text.data() + text.size()) return node;
+  return YAML::Node(fmt::format("{}", value));
+}
 
 std::filesystem::path stage_input_dir(const Session& session, const StageArgs& args,
                                       const std::string& input_stage) {
@@ -71,10 +94,29 @@ int run_stage_main(int argc, char** argv, const StageInfo& info,
                  "previous stage's, and write to <stage>_oracle/");
   }
   if (add_options) add_options(app);
-  if (!info.options_help.empty()) {
-    app.footer(fmt::format("\nOptions in session.yaml, section stages.{} (name = default: "
-                           "meaning):\n{}",
-                           info.name, info.options_help));
+  bool print_defaults = false;
+  if (!info.options.empty()) {
+    app.add_flag("--print-defaults", print_defaults,
+                 "print the stage's session.yaml sections with their defaults (YAML) and exit");
+    std::string footer;
+    for (const auto& section : info.options) {
+      footer += fmt::format("\nOptions in session.yaml, section stages.{} (name = default: "
+                            "meaning):\n{}",
+                            section.name, section.help);
+    }
+    app.footer(footer);
+  }
+  // --print-defaults needs no session: let it through without the positional argument.
+  for (int i = 1; i < argc; ++i) {
+    if (std::string_view(argv[i]) == "--print-defaults" && !info.options.empty()) {
+      YAML::Node stages(YAML::NodeType::Map);
+      for (const auto& section : info.options) stages[section.name] = YAML::Clone(section.defaults);
+      YAML::Emitter out;
+      out << stages;
+      std::fputs(out.c_str(), stdout);
+      std::fputc('\n', stdout);
+      return kExitOk;
+    }
   }
   try {
     app.parse(argc, argv);

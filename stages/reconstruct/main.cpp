@@ -10,7 +10,8 @@ int main(int argc, char** argv) {
       "stereo and depth-map fusion, remeshed; writes reconstruct/<take>/<frame>.ply, "
       "reconstruct/report.json and (when the whole session is processed) a COLMAP check of the "
       "calibration in reconstruct/calibration_check/.",
-      /*takes_frame_range=*/true, /*supports_oracle=*/true};
+      /*takes_frame_range=*/true, /*supports_oracle=*/true,
+      {fourd::options_section<fourd::reconstruct::ReconstructOptions>("reconstruct")}};
   fourd::reconstruct::CalibrationCheckRequest check;
   std::string check_frame;
   auto options = [&](CLI::App& app) {

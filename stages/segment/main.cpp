@@ -7,6 +7,7 @@ int main(int argc, char** argv) {
                         "Foreground segmentation: learns a chroma-key backdrop model per camera, "
                         "keys every frame, cleans up and writes segment/<take>/<camera>/<frame>.png "
                         "(0/255) and segment/report.json (foreground fraction per take/camera).",
-                        /*takes_frame_range=*/true};
+                        /*takes_frame_range=*/true, /*supports_oracle=*/false,
+                        {fourd::options_section<fourd::segment::SegmentOptions>("segment")}};
   return fourd::run_stage_main(argc, argv, info, nullptr, fourd::segment::run_segment);
 }
