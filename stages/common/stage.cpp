@@ -5,7 +5,6 @@
 #include <charconv>
 #include <cstdio>
 #include <memory>
-#include <string_view>
 
 #include "pipeline/core/error.h"
 #include "pipeline/core/log.h"
@@ -94,10 +93,20 @@ int run_stage_main(int argc, char** argv, const StageInfo& info,
                  "previous stage's, and write to <stage>_oracle/");
   }
   if (add_options) add_options(app);
-  bool print_defaults = false;
   if (!info.options.empty()) {
-    app.add_flag("--print-defaults", print_defaults,
-                 "print the stage's session.yaml sections with their defaults (YAML) and exit");
+    // A callback that ends the parse (as --help does), so no session argument is needed.
+    app.add_flag_callback(
+        "--print-defaults",
+        [&info] {
+          YAML::Node stages(YAML::NodeType::Map);
+          for (const auto& section : info.options) stages[section.name] = YAML::Clone(section.defaults);
+          YAML::Emitter out;
+          out << stages;
+          std::fputs(out.c_str(), stdout);
+          std::fputc('\n', stdout);
+          throw CLI::Success();
+        },
+        "print the stage's session.yaml sections with their defaults (YAML) and exit");
     std::string footer;
     for (const auto& section : info.options) {
       footer += fmt::format("\nOptions in session.yaml, section stages.{} (name = default: "
@@ -105,18 +114,6 @@ int run_stage_main(int argc, char** argv, const StageInfo& info,
                             section.name, section.help);
     }
     app.footer(footer);
-  }
-  // --print-defaults needs no session: let it through without the positional argument.
-  for (int i = 1; i < argc; ++i) {
-    if (std::string_view(argv[i]) == "--print-defaults" && !info.options.empty()) {
-      YAML::Node stages(YAML::NodeType::Map);
-      for (const auto& section : info.options) stages[section.name] = YAML::Clone(section.defaults);
-      YAML::Emitter out;
-      out << stages;
-      std::fputs(out.c_str(), stdout);
-      std::fputc('\n', stdout);
-      return kExitOk;
-    }
   }
   try {
     app.parse(argc, argv);
