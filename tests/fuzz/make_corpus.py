@@ -81,8 +81,9 @@ def obj():
               for (x, y, z), (r, g, b) in zip(VERTS, COLOURS)]
     lines += [f"vt {u} {v}" for u, v in UVS] + [f"vt 0.25 0.75"]
     lines += [f"vn {x} {y} {z}" for x, y, z in NORMALS]
-    lines += ["usemtl skin", "f 1/1/1 3/3/3 2/2/2", "f 1/6 2/2 4/4", "f -5//-5 -2//-2 -3//-3",
-              "f 2/2/2 5/5/5 3/3/3 4/4/4"]
+    # Every corner form with texture coordinates: absolute, relative (negative) and a quad.
+    lines += ["usemtl skin", "f 1/1/1 3/3/3 2/2/2", "f 1/6/1 2/2/2 4/4/4",
+              "f -5/-6/-5 -2/-3/-2 -3/-4/-3", "f 2/2/2 5/5/5 3/3/3 4/4/4"]
     mtl = ["newmtl skin", "Kd 1 1 1", "map_Kd skin.png"]
     return "\n".join(lines) + "\n--8<-- input.mtl\n" + "\n".join(mtl) + "\n"
 
