@@ -852,7 +852,12 @@ class CharacterImporter {
     if (p.indices >= 0) {
       const Table t = reader_.read(p.indices, {TINYGLTF_TYPE_SCALAR, {kUByte, kUShort, kUInt}},
                                    what + " indices");
-      for (double v : t.values) idx.push_back(static_cast<int>(v));
+      for (double v : t.values) {
+        // Checked before the conversion: an unsigned int index may not fit an int.
+        if (!(v < static_cast<double>(vertices)))
+          reader_.fail(fmt::format("{}: index {} out of range ({} vertices)", what, v, vertices));
+        idx.push_back(static_cast<int>(v));
+      }
     } else {
       idx.resize(vertices);
       std::iota(idx.begin(), idx.end(), 0);
