@@ -23,6 +23,10 @@ double distance(const Point2& a, const Point2& b) { return std::hypot(a.x - b.x,
 
 }  // namespace
 
+// Samples of one curve at most (1.25 km at the default 5 mm spacing): bounds the memory a
+// control script can ask for.
+constexpr double kMaxSamplesPerCurve = 1e6;
+
 GroundPath::GroundPath(std::vector<BezierCurve> curves, double sample_spacing)
     : curves_(std::move(curves)) {
   if (curves_.empty()) throw InputError("path: no curves");
@@ -45,7 +49,13 @@ GroundPath::GroundPath(std::vector<BezierCurve> curves, double sample_spacing)
     const auto& k = curves_[c].control;
     const double hull = distance(k[0], k[1]) + distance(k[1], k[2]) + distance(k[2], k[3]);
     // Dense parameter sampling, then arc length by chords.
-    const int n = std::max(8, static_cast<int>(std::ceil(4 * hull / sample_spacing)));
+    const double samples = std::ceil(4 * hull / sample_spacing);
+    if (!(samples <= kMaxSamplesPerCurve)) {
+      throw InputError(fmt::format(
+          "path: curve {} is too long: its control points span {:.0f} m, at most {:.0f} m", c + 1,
+          hull, kMaxSamplesPerCurve * sample_spacing / 4));
+    }
+    const int n = std::max(8, static_cast<int>(samples));
     for (int i = 1; i <= n; ++i) {
       const Point2 p = bezier(k, static_cast<double>(i) / n);
       s_.push_back(s_.back() + distance(p, points_.back()));

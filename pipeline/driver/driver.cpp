@@ -571,6 +571,12 @@ RunResult run_pipeline(const fs::path& session_dir, const std::vector<StageSpec>
     fs::remove(record_file, ec);
     if (ec) throw IoError(fmt::format("cannot remove {}: {}", record_file.string(), ec.message()));
 
+    // A run that was killed may have left its writers' temp files; they are not outputs.
+    for (const auto& out : stage.outputs) {
+      const int stale = remove_temp_files(root / out);
+      if (stale > 0) log::info("{}: removed {} temp file(s) of an interrupted run", out, stale);
+    }
+
     event.reason = reason;
     emit(StageEvent::Kind::kStarted);
     log::Timer timer;

@@ -9,6 +9,8 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <tuple>
+#include <algorithm>
 
 #include "pipeline/core/error.h"
 #include "pipeline/core/files.h"
@@ -209,6 +211,27 @@ TEST(PlayerExecutable, RefusesBadInputWithAClearMessage) {
                      &out),
             kExitInput);
   EXPECT_NE(out.find("truncated.fourd"), std::string::npos) << out;
+  // A flipped bit, another format version, the other byte order: refused, named, exit 4.
+  std::string flipped = bytes;
+  flipped[bytes.size() / 3] ^= 0x10;
+  std::string old_version = bytes;
+  old_version[8] = static_cast<char>(old_version[8] - 1);
+  std::string swapped = bytes;
+  std::reverse(swapped.begin() + 12, swapped.begin() + 16);
+  for (const auto& [name, content, reason] :
+       {std::tuple<std::string, std::string, std::string>{"flipped", flipped, "checksum"},
+        {"old_version", old_version, "not supported"},
+        {"swapped", swapped, "endianness"}}) {
+    write_file_atomic(d / (name + ".fourd"), content);
+    EXPECT_EQ(run_play((d / (name + ".fourd")).string() + " " + (d / "good.txt").string() +
+                           " -o " + (d / name).string(),
+                       &out),
+              kExitInput)
+        << out;
+    EXPECT_NE(out.find(name + ".fourd"), std::string::npos) << out;
+    EXPECT_NE(out.find(reason), std::string::npos) << out;
+    EXPECT_FALSE(fs::exists(d / name / "frames.csv"));
+  }
   // Not an asset at all.
   write_file_atomic(d / "junk.fourd", "hello");
   EXPECT_NE(run_play((d / "junk.fourd").string() + " " + (d / "good.txt").string() + " -o " +
