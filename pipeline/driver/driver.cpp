@@ -160,7 +160,8 @@ bool reads_any(const std::vector<std::string>& inputs,
 
 const std::vector<StageSpec>& stage_table() {
   // The data flow of DESIGN.md "Stages". Segment has no oracle: nothing precedes it but the
-  // capture. Validate reads every stage's outputs plus the ground truth.
+  // capture. Validate reads every stage's outputs plus the ground truth, and plays the
+  // session's control scripts (play/) on the assets.
   static const std::vector<StageSpec> table = {
       {"synth", {}, {"capture", "calibration", "ground_truth"}, false, {}},
       {"segment", {"capture", "calibration"}, {"segment"}, false, {}},
@@ -174,7 +175,7 @@ const std::vector<StageSpec>& stage_table() {
        {"calibration", "capture", "ground_truth", "segment", "reconstruct", "align", "timewarp",
         "motionspace", "texture", "graph", "asset", "oracle", "reconstruct_oracle",
         "align_oracle", "timewarp_oracle", "motionspace_oracle", "texture_oracle",
-        "graph_oracle"},
+        "graph_oracle", "asset_oracle", "play"},
        {"reports"},
        false,
        {}},
@@ -266,7 +267,8 @@ std::vector<StageSpec> with_oracle_variants(const fs::path& session_root,
     variant.name = oracle_variant_name(stage.name);
     variant.options_stage = stage.name;
     variant.arguments = {"--oracle"};
-    variant.outputs = {oracle_variant_name(stage.name)};
+    // Each output folder has its oracle twin (graph writes graph_oracle/ and asset_oracle/).
+    for (auto& output : variant.outputs) output = oracle_variant_name(output);
     variant.supports_oracle = false;
     // The same rule as stage_input_dir() in the stages: what ground truth stands in for comes
     // from oracle/ (the stage then inherits no error); otherwise the oracle run of the producing
