@@ -175,7 +175,7 @@ const std::vector<StageSpec>& stage_table() {
        {"calibration", "capture", "ground_truth", "segment", "reconstruct", "align", "timewarp",
         "motionspace", "texture", "graph", "asset", "oracle", "reconstruct_oracle",
         "align_oracle", "timewarp_oracle", "motionspace_oracle", "texture_oracle",
-        "graph_oracle", "asset_oracle", "play"},
+        "graph_oracle", "asset_oracle", kPlayFolder},
        {"reports"},
        false,
        {}},
