@@ -267,8 +267,7 @@ std::vector<StageSpec> with_oracle_variants(const fs::path& session_root,
     variant.name = oracle_variant_name(stage.name);
     variant.options_stage = stage.name;
     variant.arguments = {"--oracle"};
-    // Each output folder has its oracle twin (graph writes graph_oracle/ and asset_oracle/).
-    for (auto& output : variant.outputs) output = oracle_variant_name(output);
+    variant.outputs = {oracle_variant_name(stage.name)};
     variant.supports_oracle = false;
     // The same rule as stage_input_dir() in the stages: what ground truth stands in for comes
     // from oracle/ (the stage then inherits no error); otherwise the oracle run of the producing
