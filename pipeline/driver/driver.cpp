@@ -161,7 +161,8 @@ bool reads_any(const std::vector<std::string>& inputs,
 
 const std::vector<StageSpec>& stage_table() {
   // The data flow of DESIGN.md "Stages". Segment has no oracle: nothing precedes it but the
-  // capture. Validate reads every stage's outputs plus the ground truth.
+  // capture. Validate reads every stage's outputs plus the ground truth, and plays the
+  // session's control scripts (play/) on the assets.
   static const std::vector<StageSpec> table = {
       {"synth", {}, {"capture", "calibration", "ground_truth"}, false, {}},
       {"segment", {"capture", "calibration"}, {"segment"}, false, {}},
@@ -175,7 +176,7 @@ const std::vector<StageSpec>& stage_table() {
        {"calibration", "capture", "ground_truth", "segment", "reconstruct", "align", "timewarp",
         "motionspace", "texture", "graph", "asset", "oracle", "reconstruct_oracle",
         "align_oracle", "timewarp_oracle", "motionspace_oracle", "texture_oracle",
-        "graph_oracle"},
+        "graph_oracle", "asset_oracle", kPlayFolder},
        {"reports"},
        false,
        {}},

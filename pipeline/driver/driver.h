@@ -56,6 +56,9 @@ struct StageSpec {
 
 // The folder of ground-truth-derived inputs, written by the "oracle" step.
 inline constexpr const char* kOracleFolder = "oracle";
+// Control scripts the user puts in the session (runtime/player.h); validation plays those
+// that follow a path. No stage writes them.
+inline constexpr const char* kPlayFolder = "play";
 // Completion record file name, inside the stage's first output folder.
 inline constexpr const char* kRecordFile = ".fourd_stage.json";
 

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <ctime>
 #include <exception>
+#include <tuple>
 
 #include "pipeline/core/error.h"
 #include "pipeline/core/files.h"
@@ -91,8 +92,22 @@ const std::vector<ValidatorEntry>& validators() {
       {"timewarp", validate_timewarp},
       {"blend", validate_blend},
       {"transitions", validate_transitions},
+      {"paths", validate_paths},
   };
   return list;
+}
+
+std::vector<RunFolder> run_folders(const Session& session, const std::string& stage,
+                                   const std::string& marker) {
+  std::vector<RunFolder> out;
+  for (const auto& [suffix, input, label] :
+       {std::tuple{"", InputKind::kPipeline, "pipeline"},
+        std::tuple{"_oracle", InputKind::kOracle, "oracle"}}) {
+    std::filesystem::path dir = session.dir(stage + suffix);
+    std::error_code ec;
+    if (std::filesystem::exists(dir / marker, ec)) out.push_back({dir, input, label});
+  }
+  return out;
 }
 
 std::string metric_key(const std::string& stage, const Metric& metric) {

@@ -75,6 +75,16 @@ struct ValidationContext {
   std::filesystem::path reports_dir;  // where pictures go
 };
 
+// A stage's output folder for one kind of input: <stage>/ (pipeline) or <stage>_oracle/.
+struct RunFolder {
+  std::filesystem::path dir;
+  InputKind input;
+  const char* label;  // "pipeline" or "oracle"
+};
+// <stage>/ and <stage>_oracle/, those of them that hold `marker`, in that order.
+std::vector<RunFolder> run_folders(const Session& session, const std::string& stage,
+                                   const std::string& marker);
+
 using Validator = std::function<StageReport(const ValidationContext&)>;
 struct ValidatorEntry {
   std::string stage;
@@ -93,6 +103,12 @@ StageReport validate_timewarp(const ValidationContext& context);
 StageReport validate_blend(const ValidationContext& context);
 // Motion graph: Table 2 from graph/table2.json (transitions.*).
 StageReport validate_transitions(const ValidationContext& context);
+
+// Path following of the runtime: every control script with a path in the session's play/
+// folder played on asset/ and asset_oracle/ (distance from the path, length error; top-down
+// plots), and a transition filmstrip at several trellis depths (paper Figure 7)
+// (validate_paths.cpp).
+StageReport validate_paths(const ValidationContext& context);
 
 // segment/ silhouettes against ground_truth/silhouettes/: segment.iou_mean (validate_segment.cpp).
 StageReport validate_segment(const ValidationContext& context);

@@ -60,6 +60,7 @@ TEST(ControlScript, ParsesEveryCommand) {
       "at 3 turn -20\n"
       "at 3.5 walk 1.3 90\n"
       "at 4 jump 1.0\n"
+      "at 5 reach 6 -0.3 1.2\n"
       "path 0 0\n"
       "curve 1 0 2 0 3 0 speed 1.4\n"
       "curve 4 0 5 0 6 0 gap\n",
@@ -69,7 +70,10 @@ TEST(ControlScript, ParsesEveryCommand) {
   EXPECT_EQ(s.start_space, "locomotion");
   EXPECT_DOUBLE_EQ(s.start_p, 1.2);
   EXPECT_DOUBLE_EQ(s.start_t, 0.3);
-  ASSERT_EQ(s.events.size(), 5u);
+  ASSERT_EQ(s.events.size(), 6u);
+  EXPECT_EQ(s.events[5].command, ScriptCommand::kReach);
+  EXPECT_DOUBLE_EQ(s.events[5].b, -0.3);
+  EXPECT_DOUBLE_EQ(s.events[5].c, 1.2);
   EXPECT_EQ(s.events[0].command, ScriptCommand::kParam);  // sorted by time
   EXPECT_EQ(s.events[1].command, ScriptCommand::kMotion);
   EXPECT_EQ(s.events[1].space, "jump_length");
@@ -95,6 +99,9 @@ TEST(ControlScript, MalformedLinesNameTheLineAndTheReason) {
   EXPECT_NE(parse_error("at 1 param 1\n").find("no 'start"), std::string::npos);
   EXPECT_NE(parse_error("start locomotion\nat -1 param 1\n").find("s.txt:2:"), std::string::npos);
   EXPECT_NE(parse_error("start locomotion 1 2\n").find("s.txt:1: start time"), std::string::npos);
+  EXPECT_NE(parse_error("start locomotion\nat 1 reach 2 0\n")
+                .find("s.txt:2: 'reach' needs a target x y z"),
+            std::string::npos);
   EXPECT_EQ(parse_error("start locomotion\n"), "");
   // An unknown space is caught against the asset, with its line.
   const ControlScript s = parse_control_script("start locomotion\nat 1 motion swim 1\n", "s.txt");
