@@ -83,20 +83,6 @@ std::string report_markdown(const Session& session, const std::vector<StageRepor
 
 }  // namespace
 
-const std::vector<ValidatorEntry>& validators() {
-  static const std::vector<ValidatorEntry> list = {
-      {"synth", validate_synth},
-      {"segment", validate_segment},
-      {"reconstruct", validate_reconstruct},
-      {"align", validate_align},
-      {"timewarp", validate_timewarp},
-      {"blend", validate_blend},
-      {"transitions", validate_transitions},
-      {"paths", validate_paths},
-  };
-  return list;
-}
-
 std::vector<RunFolder> run_folders(const Session& session, const std::string& stage,
                                    const std::string& marker) {
   std::vector<RunFolder> out;
@@ -108,6 +94,29 @@ std::vector<RunFolder> run_folders(const Session& session, const std::string& st
     if (std::filesystem::exists(dir / marker, ec)) out.push_back({dir, input, label});
   }
   return out;
+}
+
+nlohmann::json read_json(const std::filesystem::path& path) {
+  try {
+    return nlohmann::json::parse(read_file(path));
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(fmt::format("{}: not valid JSON: {}", path.string(), e.what()));
+  }
+}
+
+const std::vector<ValidatorEntry>& validators() {
+  static const std::vector<ValidatorEntry> list = {
+      {"synth", validate_synth},
+      {"segment", validate_segment},
+      {"reconstruct", validate_reconstruct},
+      {"align", validate_align},
+      {"timewarp", validate_timewarp},
+      {"blend", validate_blend},
+      {"transitions", validate_transitions},
+      {"paths", validate_paths},
+      {"texture", validate_texture},
+  };
+  return list;
 }
 
 std::string metric_key(const std::string& stage, const Metric& metric) {

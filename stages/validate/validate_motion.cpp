@@ -17,14 +17,6 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-json read_json(const fs::path& path) {
-  try {
-    return json::parse(read_file(path));
-  } catch (const json::exception& e) {
-    throw InputError(fmt::format("{}: not valid JSON: {}", path.string(), e.what()));
-  }
-}
-
 double wrap_half(double x) { return x - std::floor(x + 0.5); }  // into [-0.5, 0.5)
 
 struct PhaseErrors {

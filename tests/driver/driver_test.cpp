@@ -391,10 +391,10 @@ TEST_F(DriverTest, StatusReportsDoneChangedAndNotRun) {
 // Oracle variants of the real stage table read ground truth wherever it can stand in for their
 // input (so each inherits no error from the stages before it), and chain otherwise.
 TEST_F(DriverTest, OracleVariantsReadGroundTruthWhereItStandsIn) {
-  write_yaml("name: test\noracle: [align, timewarp, motionspace, graph]\n");
+  write_yaml("name: test\noracle: [align, timewarp, motionspace, texture, graph]\n");
   std::vector<StageSpec> built;
   for (const auto& s : stage_table()) {
-    if (s.name != "synth" && s.name != "texture") built.push_back(s);
+    if (s.name != "synth") built.push_back(s);
   }
   const Session session = Session::open(session_);
   std::map<std::string, std::vector<std::string>> inputs;
@@ -403,7 +403,11 @@ TEST_F(DriverTest, OracleVariantsReadGroundTruthWhereItStandsIn) {
   EXPECT_EQ(inputs["align_oracle"], (std::vector<std::string>{"oracle/reconstruct"}));
   EXPECT_EQ(inputs["timewarp_oracle"], (std::vector<std::string>{"oracle/align"}));
   EXPECT_EQ(inputs["motionspace_oracle"], (std::vector<std::string>{"timewarp_oracle"}));
-  EXPECT_EQ(inputs["graph_oracle"][0], "motionspace_oracle");
+  // Texture reads the ground-truth meshes and the capture itself (raw data, never an oracle).
+  EXPECT_EQ(inputs["texture_oracle"],
+            (std::vector<std::string>{"oracle/align", "capture", "calibration"}));
+  EXPECT_EQ(inputs["graph_oracle"],
+            (std::vector<std::string>{"motionspace_oracle", "texture_oracle"}));
   EXPECT_TRUE(inputs.count("oracle"));  // the preparation step runs before them
 }
 
