@@ -142,5 +142,6 @@ SurfaceHit SurfaceQuery::closest(const Vec3f& p, float max_distance, const Vec3f
 }
 
 const std::vector<Vec3f>& SurfaceQuery::positions() const { return impl_->positions; }
+const std::vector<Tri>& SurfaceQuery::triangles() const { return impl_->triangles; }
 
 }  // namespace fourd::align
