@@ -12,6 +12,6 @@ int main(int argc, char** argv) {
                         "texture/atlas.ply (+ .json, .png), texture/<take>/<frame>.png and "
                         "texture/report.json.",
                         /*takes_frame_range=*/false, /*supports_oracle=*/true,
-                        fourd::describe_options(fourd::texture::TextureOptions{})};
+                        {fourd::options_section<fourd::texture::TextureOptions>("texture")}};
   return fourd::run_stage_main(argc, argv, info, nullptr, fourd::texture::run_texture);
 }
