@@ -172,6 +172,12 @@ class Character {
 
   // Advances by dt seconds of motion time (dt >= 0) and evaluates the frame. No allocation.
   const CharacterFrame& step(double dt);
+  // Plays a copy of a state forward by `seconds` as step() would, but without requests, plans,
+  // the tick hook or any other side effect: a path under way plays to its end, then the motion
+  // plays on freely. For predictions (where a transition path would take the root). No
+  // allocation.
+  void preview(CharacterState* state, double seconds) { advance(state, seconds, false); }
+
   // The frame of the last step (or of reset).
   const CharacterFrame& frame() const { return frame_; }
   // The state the last frame shows (between ticks: the committed tick advanced, not committed).

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 #include "pipeline/core/error.h"
 #include "runtime/root_math.h"
@@ -21,7 +22,15 @@ Point2 bezier(const std::array<Point2, 4>& c, double u) {
 
 double distance(const Point2& a, const Point2& b) { return std::hypot(a.x - b.x, a.y - b.y); }
 
+// Predictions play the path in steps of this many ticks, for at most this many steps.
+constexpr int kPreviewTicks = 4;
+constexpr int kMaxPreviewSteps = 4000;
+
 }  // namespace
+
+// Samples of one curve at most (1.25 km at the default 5 mm spacing): bounds the memory a
+// control script can ask for.
+constexpr double kMaxSamplesPerCurve = 1e6;
 
 GroundPath::GroundPath(std::vector<BezierCurve> curves, double sample_spacing)
     : curves_(std::move(curves)) {
@@ -45,7 +54,13 @@ GroundPath::GroundPath(std::vector<BezierCurve> curves, double sample_spacing)
     const auto& k = curves_[c].control;
     const double hull = distance(k[0], k[1]) + distance(k[1], k[2]) + distance(k[2], k[3]);
     // Dense parameter sampling, then arc length by chords.
-    const int n = std::max(8, static_cast<int>(std::ceil(4 * hull / sample_spacing)));
+    const double samples = std::ceil(4 * hull / sample_spacing);
+    if (!(samples <= kMaxSamplesPerCurve)) {
+      throw InputError(fmt::format(
+          "path: curve {} is too long: its control points span {:.0f} m, at most {:.0f} m", c + 1,
+          hull, kMaxSamplesPerCurve * sample_spacing / 4));
+    }
+    const int n = std::max(8, static_cast<int>(samples));
     for (int i = 1; i <= n; ++i) {
       const Point2 p = bezier(k, static_cast<double>(i) / n);
       s_.push_back(s_.back() + distance(p, points_.back()));
@@ -113,13 +128,39 @@ void ControllerOptions::check() const {
   if (!(arrive_distance > 0)) {
     throw ConfigError(fmt::format("arrive_distance {} must be > 0", arrive_distance));
   }
+  if (!(turn_exit_rate >= 0 && turn_enter_rate >= turn_exit_rate)) {
+    throw ConfigError(fmt::format("turn_exit_rate {} must be >= 0 and <= turn_enter_rate {}",
+                                  turn_exit_rate, turn_enter_rate));
+  }
+  if (!(turn_preview > 0)) {
+    throw ConfigError(fmt::format("turn_preview {} must be > 0", turn_preview));
+  }
 }
 
 Controller::Controller(Character& character, const ControllerOptions& options)
     : character_(character), options_(options) {
   options_.check();
-  locomotion_ = character_.graph().find_space(options_.locomotion_space);
-  jump_ = character_.graph().find_space(options_.jump_space);
+  const MotionGraph& g = character_.graph();
+  locomotion_ = g.find_space(options_.locomotion_space);
+  jump_ = g.find_space(options_.jump_space);
+  turning_ = g.find_space(options_.turning_space);
+  reach_ = g.find_space(options_.reach_space);
+  // Each placed motion must be one-shot and reachable from locomotion; turning cyclic.
+  auto usable = [&](int space, bool cyclic) {
+    return space >= 0 && locomotion_ >= 0 && g.spaces[space].cyclic() == cyclic &&
+           g.find_edge(locomotion_, space) >= 0 && g.find_edge(space, locomotion_) >= 0;
+  };
+  if (!usable(turning_, true)) turning_ = -1;
+  if (!usable(reach_, false)) reach_ = -1;
+  if (locomotion_ >= 0) {
+    const GraphSpace& loco = g.spaces[locomotion_];
+    const double a = cycle_travel(loco.parameter_min()), b = cycle_travel(loco.parameter_max());
+    cycle_range_ = {std::min(a, b), std::max(a, b)};
+  }
+  if (reach_ >= 0) {
+    scratch_ = make_blended_frame(g.spaces[reach_].motion.blend);
+    scratch0_ = make_blended_frame(g.spaces[reach_].motion.blend);
+  }
   character_.set_tick_hook(this);
 }
 
@@ -128,6 +169,7 @@ Controller::~Controller() { character_.set_tick_hook(nullptr); }
 RequestStatus Controller::walk(double speed, double heading) {
   path_ = nullptr;
   status_.active = false;
+  reach_status_.active = false;
   if (locomotion_ < 0) {
     RequestStatus refused;
     refused.result = RequestResult::kUnknownSpace;
@@ -147,100 +189,332 @@ RequestStatus Controller::jump(double length) {
   return character_.request_motion(jump_, length);
 }
 
+RequestStatus Controller::reach(double x, double y, double z) {
+  RequestStatus status;
+  if (reach_ < 0) {
+    status.result = RequestResult::kUnknownSpace;
+    return status;
+  }
+  stop_following();
+  steer_heading_ = false;
+  const GraphSpace& space = character_.graph().spaces[reach_];
+  const double lo = space.parameter_min(), hi = space.parameter_max();
+  status.clamped = !(z >= lo && z <= hi);
+  status.applied = std::isfinite(z) ? std::clamp(z, lo, hi) : lo;
+  status.hops = 1;
+  reach_status_ = ReachStatus{};
+  reach_status_.active = true;
+  reach_status_.target[0] = x, reach_status_.target[1] = y, reach_status_.target[2] = z;
+  reach_status_.parameter = status.applied;
+  // The hand: the vertex that moves furthest from its place at t = 0 (the rule the parameter
+  // is measured with), and the time it is furthest.
+  std::array<float, 3> w{};
+  space_weights(space, status.applied, &w);
+  const std::span<const float> ws(w.data(), space.num_inputs());
+  const BlendSpace& blend = space.motion.blend;
+  BlendSources sources;
+  hybrid_blend_sources(blend, 0.0, ws, &sources);
+  weighted_sum(sources, blend.frame_stride(), scratch0_.data.data());
+  double furthest = -1;
+  const int samples = space.num_samples();
+  for (int u = 1; u < samples; ++u) {
+    const double t = static_cast<double>(u) / (samples - 1);
+    hybrid_blend_sources(blend, t, ws, &sources);
+    weighted_sum(sources, blend.frame_stride(), scratch_.data.data());
+    for (int v = 0; v < blend.num_vertices; ++v) {
+      const double d = (scratch_.position(v) - scratch0_.position(v)).squaredNorm();
+      if (d > furthest) {
+        furthest = d;
+        reach_status_.hand_vertex = v;
+        reach_status_.apex_t = t;
+        hand_offset_ = {scratch_.x()[v], scratch_.y()[v]};
+      }
+    }
+  }
+  return status;
+}
+
 void Controller::follow(const GroundPath* path) {
   path_ = path;
   steer_heading_ = false;
+  reach_status_.active = false;
   status_ = FollowStatus{};
   status_.active = path != nullptr;
   current_curve_ = -1;
   jumped_curve_ = -1;
+  approaching_ = false;
+  last_jump_t_ = 1;
   if (!path) return;
   const CharacterState& s = character_.state();
   last_x_ = s.root.x;
   last_y_ = s.root.y;
-  status_.s = path->closest({s.root.x, s.root.y}, 0.0, path->length());
+  last_heading_ = s.root.heading;
+  status_.s = status_.s_start = path->closest({s.root.x, s.root.y}, 0.0, path->length());
+}
+
+Controller::Placement Controller::predict(const CharacterState& state, int space, double p,
+                                          double key_t, const Point2& offset) {
+  Placement out;
+  const MotionGraph& g = character_.graph();
+  const int edge = g.find_edge(locomotion_, space);
+  if (edge < 0) return out;
+  const TransitionPath path = search_.search(g, edge, {locomotion_, state.t, state.p},
+                                             {space, p, -1}, character_.transition_options());
+  if (!path.found) return out;
+  // Play the path on a copy of the state, as the character will (parameter ramps, cross-fade),
+  // without the steering, up to the key time in the target.
+  CharacterState s = state;
+  s.phase = PlayPhase::kSource;
+  s.path = path;
+  s.played = 0;
+  s.p_target = path.end.p;
+  s.turn_rate = 0;
+  s.goal_space = -1;
+  s.return_space = -1;
+  const double dt = kPreviewTicks * character_.options().tick_seconds;
+  for (int i = 0; i < kMaxPreviewSteps; ++i) {
+    if (s.space == space && s.phase != PlayPhase::kSource && s.t >= key_t - 1e-9) break;
+    character_.preview(&s, dt);
+  }
+  const double c = std::cos(s.root.heading), sn = std::sin(s.root.heading);
+  const double kx = s.root.x + c * offset.x - sn * offset.y - state.root.x;
+  const double ky = s.root.y + sn * offset.x + c * offset.y - state.root.y;
+  const double c0 = std::cos(state.root.heading), s0 = std::sin(state.root.heading);
+  const GraphSpace& loco = g.spaces[locomotion_];
+  std::array<float, 3> wl{};
+  space_weights(loco, state.p, &wl);
+  const RootPose cycle =
+      space_root(loco.motion, 1.0, std::span<const float>(wl.data(), loco.num_inputs()));
+  out.found = true;
+  out.forward = c0 * kx + s0 * ky;
+  out.left = -s0 * kx + c0 * ky;
+  out.cycle = std::hypot(cycle.x, cycle.y);
+  return out;
+}
+double Controller::cycle_travel(double speed) const {
+  const GraphSpace& loco = character_.graph().spaces[locomotion_];
+  std::array<float, 3> w{};
+  space_weights(loco, speed, &w);
+  const RootPose r =
+      space_root(loco.motion, 1.0, std::span<const float>(w.data(), loco.num_inputs()));
+  return std::hypot(r.x, r.y);
+}
+
+double Controller::speed_for_cycle(double travel) const {
+  const GraphSpace& loco = character_.graph().spaces[locomotion_];
+  double lo = loco.parameter_min(), hi = loco.parameter_max();
+  const bool increasing = cycle_travel(hi) >= cycle_travel(lo);
+  for (int k = 0; k < 30; ++k) {
+    const double mid = 0.5 * (lo + hi);
+    if ((cycle_travel(mid) < travel) == increasing) {
+      lo = mid;
+    } else {
+      hi = mid;
+    }
+  }
+  return 0.5 * (lo + hi);
+}
+
+bool Controller::approach(Character& character, const CharacterState& state,
+                          const Placement& placement, double goal_forward) {
+  const double error = goal_forward - placement.forward;
+  const double cycle = placement.cycle;
+  if (!(cycle > 1e-6)) return true;
+  // The staircase's step: measured when the prediction steps (the error drops by a plausible
+  // amount), else half a cycle (a walk offers a take-off from either foot).
+  if (!approaching_) {
+    step_ = 0.5 * cycle;
+  } else if (last_error_ - error > 0.2 * cycle && last_error_ - error < 0.7 * cycle) {
+    step_ = 0.5 * (step_ + (last_error_ - error));
+  }
+  last_error_ = error;
+  approaching_ = true;
+  if (error < 0.5 * step_) return true;
+  // The k-th next step lands on the goal if the steps are error / k long; they scale with the
+  // cycle's travel. Of the k around error / step, the one whose cycle the speed range allows
+  // and that changes the speed least.
+  const double k0 = std::max(1.0, std::floor(error / step_));
+  double best = cycle, best_cost = 1e300;
+  for (double k = k0; k <= k0 + 1; ++k) {
+    const double wanted = cycle * error / (k * step_);
+    const double feasible = std::clamp(wanted, cycle_range_[0], cycle_range_[1]);
+    const double cost = 10 * std::abs(wanted - feasible) + std::abs(feasible - cycle);
+    if (cost < best_cost) best_cost = cost, best = feasible;
+  }
+  const double speed = speed_for_cycle(best);
+  const GraphSpace& loco = character.graph().spaces[locomotion_];
+  if (std::abs(state.p_target - speed) > 0.01 * (loco.parameter_max() - loco.parameter_min())) {
+    character.set_parameters(speed);
+  }
+  return false;
 }
 
 void Controller::on_tick(Character& character, const CharacterState& state) {
   if (path_ && status_.active) {
-    const GroundPath& path = *path_;
-    const Point2 root{state.root.x, state.root.y};
-    status_.travelled += std::hypot(root.x - last_x_, root.y - last_y_);
-    last_x_ = root.x;
-    last_y_ = root.y;
-    status_.s = path.closest(root, status_.s - 0.5, status_.s + 1.0);
-    const Point2 q = path.point_at(status_.s);
-    const double tangent = path.heading_at(status_.s);
-    status_.lateral_error =
-        std::cos(tangent) * (root.y - q.y) - std::sin(tangent) * (root.x - q.x);
-    status_.max_abs_error = std::max(status_.max_abs_error, std::abs(status_.lateral_error));
-    if (status_.s >= path.length() - options_.arrive_distance) {
-      status_.done = true;
-      status_.active = false;
-      character.set_turn_rate(0);
-      return;
-    }
-    // Speed of the curve being walked, applied whenever the character is in locomotion.
-    const int curve = path.curve_at(status_.s);
-    current_curve_ = curve;
-    double speed = -1;
-    for (int c = curve; c >= 0 && speed < 0; --c) speed = path.curves()[c].speed;
-    if (speed >= 0 && state.space == locomotion_ && state.phase == PlayPhase::kFree) {
-      const GraphSpace& loco = character.graph().spaces[locomotion_];
-      const double v = std::clamp(speed, loco.parameter_min(), loco.parameter_max());
-      if (std::abs(state.p_target - v) > 1e-9) character.set_parameters(v);
-    }
-    // The next gap: predict where a jump requested now would peak; request it once that
-    // reaches the middle of the gap.
-    if (jump_ >= 0 && state.space == locomotion_ && state.phase == PlayPhase::kFree &&
-        !state.fading) {
-      for (int c = curve; c < static_cast<int>(path.curves().size()); ++c) {
-        if (!path.curves()[c].gap || c == jumped_curve_) continue;
-        const double middle = 0.5 * (path.curve_start(c) + path.curve_end(c));
-        if (middle - status_.s > options_.jump_search_distance) break;
-        const auto& k = path.curves()[c].control;
-        const double length = std::hypot(k[3].x - k[0].x, k[3].y - k[0].y);
-        const MotionGraph& g = character.graph();
-        const int edge = g.find_edge(locomotion_, jump_);
-        if (edge < 0) break;
-        const TransitionPath p = search_.search(g, edge, {locomotion_, state.t, state.p},
-                                                {jump_, length, -1}, character.transition_options());
-        if (!p.found) break;
-        const GraphSpace& loco = g.spaces[locomotion_];
-        const GraphSpace& jump = g.spaces[jump_];
-        std::array<float, 3> wl{}, wj{};
-        space_weights(loco, state.p, &wl);
-        space_weights(jump, p.entry.p, &wj);
-        const std::span<const float> wls(wl.data(), loco.num_inputs());
-        const std::span<const float> wjs(wj.data(), jump.num_inputs());
-        const RootPose run_up = root_relative(space_root(loco.motion, state.t, wls),
-                                              space_root(loco.motion, state.t + p.source_span, wls));
-        const double flight = space_root(jump.motion, 0.5, wjs).x -
-                              space_root(jump.motion, std::min(0.5, p.entry.t), wjs).x;
-        const double predicted = status_.s + run_up.x + flight;
-        // The search exits at a favoured phase of the cycle, so the prediction is a staircase
-        // that steps by one cycle's travel: request on the step nearest to the gap's middle.
-        const double cycle = space_root(loco.motion, 1.0, wls).x;
-        if (predicted >= middle - 0.5 * cycle) {
-          character.request_motion(jump_, length);
-          jumped_curve_ = c;
-          ++status_.jumps;
-          status_.predicted_jump_middle = predicted;
-        }
-        break;
-      }
-    }
-    // Pure pursuit on the look-ahead point, plus a lateral term.
-    const Point2 aim = path.point_at(status_.s + options_.lookahead);
-    const double desired = std::atan2(aim.y - root.y, aim.x - root.x);
-    const double error = wrap_heading(desired - state.root.heading);
-    character.set_turn_rate(options_.heading_gain * error -
-                            options_.lateral_gain * status_.lateral_error);
+    follow_tick(character, state);
+    return;
+  }
+  if (reach_status_.active) {
+    reach_tick(character, state);
     return;
   }
   if (steer_heading_) {
-    character.set_turn_rate(options_.heading_gain * wrap_heading(heading_goal_ - state.root.heading));
+    character.set_turn_rate(options_.heading_gain *
+                            wrap_heading(heading_goal_ - state.root.heading));
   }
+}
+
+void Controller::reach_tick(Character& character, const CharacterState& state) {
+  ReachStatus& r = reach_status_;
+  const double c = std::cos(state.root.heading), sn = std::sin(state.root.heading);
+  if (r.requested) {
+    if (state.space == reach_ && state.phase != PlayPhase::kSource && state.t >= r.apex_t) {
+      // The hand at its furthest point, in the world.
+      const GraphSpace& space = character.graph().spaces[reach_];
+      std::array<float, 3> w{};
+      space_weights(space, state.p, &w);
+      BlendSources sources;
+      hybrid_blend_sources(space.motion.blend, state.t,
+                           std::span<const float>(w.data(), space.num_inputs()), &sources);
+      weighted_sum(sources, space.motion.blend.frame_stride(), scratch_.data.data());
+      const Vec3f h = scratch_.position(r.hand_vertex);
+      r.hand[0] = state.root.x + c * h.x() - sn * h.y();
+      r.hand[1] = state.root.y + sn * h.x() + c * h.y();
+      r.hand[2] = h.z();
+      r.hand_error =
+          std::sqrt(std::pow(r.hand[0] - r.target[0], 2) + std::pow(r.hand[1] - r.target[1], 2) +
+                    std::pow(r.hand[2] - r.target[2], 2));
+      r.done = true;
+      r.active = false;
+      character.set_turn_rate(0);
+    }
+    return;
+  }
+  if (state.space != locomotion_ || state.phase != PlayPhase::kFree || state.fading) {
+    if (state.space != locomotion_ && state.phase == PlayPhase::kFree && !state.fading &&
+        character.graph().spaces[state.space].cyclic()) {
+      character.request_motion(locomotion_, state.p_target);  // reach from locomotion
+    }
+    return;
+  }
+  // The target in the current root frame; steer so that the hand's sideways offset at the
+  // furthest point lines up with it.
+  const double dx = r.target[0] - state.root.x, dy = r.target[1] - state.root.y;
+  const double forward = c * dx + sn * dy;
+  const double aim_x = dx + sn * hand_offset_.y, aim_y = dy - c * hand_offset_.y;
+  const double desired = std::atan2(aim_y, aim_x);
+  character.set_turn_rate(options_.heading_gain * wrap_heading(desired - state.root.heading));
+  const Placement placement = predict(state, reach_, r.parameter, r.apex_t, hand_offset_);
+  if (!placement.found) return;
+  if (approach(character, state, placement, forward)) {
+    character.request_motion(reach_, r.parameter);
+    character.set_turn_rate(0);
+    r.requested = true;
+    approaching_ = false;
+  }
+}
+
+void Controller::follow_tick(Character& character, const CharacterState& state) {
+  const GroundPath& path = *path_;
+  const Point2 root{state.root.x, state.root.y};
+  status_.travelled += std::hypot(root.x - last_x_, root.y - last_y_);
+  last_x_ = root.x;
+  last_y_ = root.y;
+  status_.total_turn += std::abs(state.root.heading - last_heading_);
+  status_.root_turn += std::abs(state.turn_rate) * character.options().tick_seconds;
+  last_heading_ = state.root.heading;
+  status_.s = path.closest(root, status_.s - 0.5, status_.s + 1.0);
+  const Point2 q = path.point_at(status_.s);
+  const double tangent = path.heading_at(status_.s);
+  status_.lateral_error = std::cos(tangent) * (root.y - q.y) - std::sin(tangent) * (root.x - q.x);
+  status_.max_abs_error = std::max(status_.max_abs_error, std::abs(status_.lateral_error));
+  // Where the jump happened: its middle against the gap's.
+  if (jump_ >= 0 && jumped_curve_ >= 0 && state.space == jump_ &&
+      state.phase != PlayPhase::kSource) {
+    if (last_jump_t_ < 0.5 && state.t >= 0.5) {
+      const double middle = 0.5 * (path.curve_start(jumped_curve_) + path.curve_end(jumped_curve_));
+      status_.jump_offset = status_.s - middle;
+      if (std::abs(status_.jump_offset) > std::abs(status_.max_abs_jump_offset)) {
+        status_.max_abs_jump_offset = status_.jump_offset;
+      }
+    }
+    last_jump_t_ = state.t;
+  } else {
+    last_jump_t_ = state.space == jump_ ? state.t : 0.0;
+  }
+  if (status_.s >= path.length() - options_.arrive_distance) {
+    status_.done = true;
+    status_.active = false;
+    character.set_turn_rate(0);
+    return;
+  }
+  const bool free = state.phase == PlayPhase::kFree && !state.fading;
+  // Speed of the curve being walked.
+  const int curve = path.curve_at(status_.s);
+  current_curve_ = curve;
+  double speed = -1;
+  for (int c = curve; c >= 0 && speed < 0; --c) speed = path.curves()[c].speed;
+  // The next gap within reach of the jump prediction.
+  int gap = -1;
+  if (jump_ >= 0) {
+    for (int c = curve; c < static_cast<int>(path.curves().size()); ++c) {
+      if (!path.curves()[c].gap || c == jumped_curve_) continue;
+      const double middle = 0.5 * (path.curve_start(c) + path.curve_end(c));
+      if (middle - status_.s <= options_.jump_search_distance) gap = c;
+      break;
+    }
+  }
+  if (gap < 0) approaching_ = false;
+  if (speed >= 0 && state.space == locomotion_ && state.phase == PlayPhase::kFree &&
+      !approaching_) {
+    const GraphSpace& loco = character.graph().spaces[locomotion_];
+    const double v = std::clamp(speed, loco.parameter_min(), loco.parameter_max());
+    if (std::abs(state.p_target - v) > 1e-9) character.set_parameters(v);
+  }
+  // Curves: the turning space when the turn rate the path needs is large enough.
+  if (turning_ >= 0 && free) {
+    const GraphSpace& loco = character.graph().spaces[locomotion_];
+    const double v = state.space == locomotion_ ? state.p
+                     : speed >= 0               ? speed
+                                  : 0.5 * (loco.parameter_min() + loco.parameter_max());
+    const double a = status_.s + options_.lookahead;
+    const double b = std::min(path.length(), a + options_.turn_preview);
+    const double rate = b > a ? wrap_heading(path.heading_at(b) - path.heading_at(a)) / (b - a) *
+                                    v * 180 / std::numbers::pi
+                              : 0.0;
+    const GraphSpace& turning = character.graph().spaces[turning_];
+    const double applied = std::clamp(rate, turning.parameter_min(), turning.parameter_max());
+    if (state.space == locomotion_ && gap < 0 && std::abs(rate) >= options_.turn_enter_rate) {
+      character.request_motion(turning_, applied);
+      ++status_.turning_requests;
+    } else if (state.space == turning_) {
+      if (gap >= 0 || std::abs(rate) < options_.turn_exit_rate) {
+        character.request_motion(locomotion_, v);
+      } else if (std::abs(state.p_target - applied) > 0.5) {
+        character.set_parameters(applied);
+      }
+    }
+  }
+  // The gap: place the jump's middle on the gap's middle.
+  if (gap >= 0 && state.space == locomotion_ && free) {
+    const auto& k = path.curves()[gap].control;
+    const double length = std::hypot(k[3].x - k[0].x, k[3].y - k[0].y);
+    const double middle = 0.5 * (path.curve_start(gap) + path.curve_end(gap));
+    const Placement placement = predict(state, jump_, length, 0.5, {0, 0});
+    if (placement.found && approach(character, state, placement, middle - status_.s)) {
+      character.request_motion(jump_, length);
+      jumped_curve_ = gap;
+      approaching_ = false;
+      ++status_.jumps;
+      status_.predicted_jump_middle = status_.s + placement.forward;
+    }
+  }
+  // Pure pursuit on the look-ahead point, plus a lateral term.
+  const Point2 aim = path.point_at(status_.s + options_.lookahead);
+  const double desired = std::atan2(aim.y - root.y, aim.x - root.x);
+  const double error = wrap_heading(desired - state.root.heading);
+  character.set_turn_rate(options_.heading_gain * error -
+                          options_.lateral_gain * status_.lateral_error);
 }
 
 }  // namespace fourd

@@ -142,7 +142,7 @@ ControlScript parse_control_script(std::string_view text, const std::string& nam
       e.line = line;
       e.time = p.number(1, "a time in seconds");
       if (e.time < 0) p.fail("event time must be >= 0");
-      if (p.size() < 3) p.fail("'at' needs a command (param, motion, turn, walk, jump)");
+      if (p.size() < 3) p.fail("'at' needs a command (param, motion, turn, walk, jump, reach)");
       const std::string& what = words[2];
       if (what == "param") {
         p.at_most(4);
@@ -171,8 +171,15 @@ ControlScript parse_control_script(std::string_view text, const std::string& nam
         p.at_most(4);
         e.command = ScriptCommand::kJump;
         e.a = p.number(3, "a jump length");
+      } else if (what == "reach") {
+        p.at_most(6);
+        e.command = ScriptCommand::kReach;
+        e.a = p.number(3, "a target x y z");
+        e.b = p.number(4, "a target x y z");
+        e.c = p.number(5, "a target x y z");
       } else {
-        p.fail(fmt::format("unknown command '{}' (expected param, motion, turn, walk or jump)", what));
+        p.fail(fmt::format(
+            "unknown command '{}' (expected param, motion, turn, walk, jump or reach)", what));
       }
       script.events.push_back(e);
     } else if (cmd == "path") {
@@ -339,6 +346,10 @@ PlayerReport run_player(const Asset& asset, const ControlScript& script,
           status = controller.jump(e.a);
           what = fmt::format("jump {}", e.a);
           break;
+        case ScriptCommand::kReach:
+          status = controller.reach(e.a, e.b, e.c);
+          what = fmt::format("reach {} {} {}", e.a, e.b, e.c);
+          break;
       }
       if (status.clamped) {
         ++report.clamped;
@@ -402,6 +413,8 @@ PlayerReport run_player(const Asset& asset, const ControlScript& script,
       write_ply(mesh_dir / fmt::format("frame_{:05d}.ply", f), mesh);
       ++report.meshes;
     }
+    report.played.push_back({frame_time, out.root.x, out.root.y, out.root.heading, s.space, s.phase,
+                             s.fading, follow.lateral_error});
     report.frames = f + 1;
     report.duration = frame_time;
     if (report.followed_path && follow.done && options.duration < 0 && script.duration < 0) break;
@@ -413,7 +426,13 @@ PlayerReport run_player(const Asset& asset, const ControlScript& script,
   const FollowStatus& follow = controller.follow_status();
   report.path_done = follow.done;
   report.travelled = follow.travelled;
+  report.covered = follow.s - follow.s_start;
   report.max_path_error = follow.max_abs_error;
+  report.jumps = follow.jumps;
+  report.max_abs_jump_offset = follow.max_abs_jump_offset;
+  report.turning_requests = follow.turning_requests;
+  report.root_turn_share = follow.total_turn > 0 ? follow.root_turn / follow.total_turn : 0.0;
+  report.reach = controller.reach_status();
   report.clamped = character.clamp_count();
 
   write_file_atomic(options.out_dir / "frames.csv", csv);
@@ -431,14 +450,23 @@ PlayerReport run_player(const Asset& asset, const ControlScript& script,
   summary["max_search_us"] = report.max_search_seconds * 1e6;
   if (report.followed_path) {
     summary["path"] = {{"length_m", report.path_length},
+                       {"covered_m", report.covered},
                        {"done", report.path_done},
                        {"travelled_m", report.travelled},
-                       {"length_error_pct", report.path_length > 0
-                                                ? 100 * (report.travelled - report.path_length) /
-                                                      report.path_length
-                                                : 0.0},
+                       {"length_error_pct", report.length_error_pct()},
                        {"max_error_m", report.max_path_error},
-                       {"jumps", follow.jumps}};
+                       {"jumps", follow.jumps},
+                       {"max_abs_jump_offset_m", report.max_abs_jump_offset},
+                       {"turning_requests", report.turning_requests},
+                       {"root_turn_share", report.root_turn_share}};
+  }
+  if (report.reach.requested || report.reach.active) {
+    const ReachStatus& r = report.reach;
+    summary["reach"] = {{"target", {r.target[0], r.target[1], r.target[2]}},
+                        {"parameter", r.parameter},
+                        {"done", r.done},
+                        {"hand", {r.hand[0], r.hand[1], r.hand[2]}},
+                        {"hand_error_m", r.hand_error}};
   }
   write_file_atomic(options.out_dir / "summary.json", summary.dump(2) + "\n");
   log::info("{} frames, {} meshes, {} transitions written to {}", report.frames, report.meshes,

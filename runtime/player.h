@@ -14,6 +14,8 @@
 //   at 3.0 turn 20                    steer the root at 20 deg/s (0 stops)
 //   at 3.0 walk 1.3 90                controller: locomotion at 1.3 m/s towards heading 90 deg
 //   at 4.0 jump 1.0                   controller: a jump of 1.0 m, then back to locomotion
+//   at 5.0 reach 6 -0.3 1.2           controller: walk up to world point (6, -0.3, 1.2) [m] and
+//                                     reach it with the hand
 //   path 0 0                          a Bezier path starting at (0, 0), followed from time 0
 //   curve 1 0 2 0 3 0 [speed 1.4] [gap]   a cubic curve: two control points and its end point;
 //                                     `speed` sets the locomotion speed from there on, `gap`
@@ -38,7 +40,7 @@
 
 namespace fourd {
 
-enum class ScriptCommand { kParam, kMotion, kTurn, kWalk, kJump };
+enum class ScriptCommand { kParam, kMotion, kTurn, kWalk, kJump, kReach };
 
 struct ScriptEvent {
   double time = 0;
@@ -46,7 +48,8 @@ struct ScriptEvent {
   ScriptCommand command = ScriptCommand::kParam;
   std::string space;  // kMotion
   double a = 0;       // parameter / turn rate [deg/s] / speed / length
-  double b = -1;      // kMotion: normalised time (< 0: none); kWalk: heading [deg]
+  double b = -1;      // kMotion: normalised time (< 0: none); kWalk: heading [deg]; kReach: y
+  double c = 0;       // kReach: z
 };
 
 struct ControlScript {
@@ -82,6 +85,16 @@ struct PlayerOptions {
   ControllerOptions controller;
 };
 
+// One played frame, for plots (world root on the ground, what was playing).
+struct PlayedFrame {
+  double time = 0;                   // [s]
+  double x = 0, y = 0, heading = 0;  // root [m, m, rad]
+  int space = 0;
+  PlayPhase phase = PlayPhase::kFree;
+  bool fading = false;
+  double path_error = 0;  // [m] signed distance from the path (0 without one)
+};
+
 struct PlayerReport {
   int frames = 0;
   int meshes = 0;
@@ -92,9 +105,22 @@ struct PlayerReport {
   bool followed_path = false;
   bool path_done = false;
   double path_length = 0;     // [m]
+  double covered = 0;         // [m] length of the path between the root's first and last
+                              // closest points (the path less arrive_distance at its end)
   double travelled = 0;       // [m] root distance while following
   double max_path_error = 0;  // [m]
   double max_search_seconds = 0;
+  int jumps = 0;                   // jumps the path follower requested
+  double max_abs_jump_offset = 0;  // [m] jump middle - gap middle, largest in magnitude
+  int turning_requests = 0;        // requests into the turning space while following
+  double root_turn_share = 0;      // part of the root's turning made by rotating the root
+  ReachStatus reach;               // the last reach
+  // (travelled - covered) / covered [%]: the root's path against the stretch of the path it
+  // followed; 0 without a path.
+  double length_error_pct() const {
+    return covered > 0 ? 100 * (travelled - covered) / covered : 0.0;
+  }
+  std::vector<PlayedFrame> played;  // every frame
 };
 
 // Plays `script` on `asset` and writes the outputs. Logs through pipeline/core/log.h.

@@ -5,6 +5,7 @@
 #include <xxhash.h>
 
 #include <atomic>
+#include <cctype>
 #include <cstdio>
 #include <fmt/format.h>
 #include <vector>
@@ -29,6 +30,61 @@ fs::path temp_path_for(const fs::path& path) {
   // Keep the extension last so writers that dispatch on it (OpenCV, OIIO) still work.
   return path.parent_path() / fmt::format(".{}.tmp{}-{}{}", path.stem().string(), ::getpid(),
                                           counter++, path.extension().string());
+}
+
+bool is_temp_file(const fs::path& path) {
+  // ".<stem>.tmp<pid>-<n><ext>": the stem may itself contain dots, the pid and n are digits.
+  const std::string name = path.filename().string();
+  if (name.size() < 2 || name[0] != '.') return false;
+  for (std::size_t at = name.find(".tmp", 1); at != std::string::npos;
+       at = name.find(".tmp", at + 1)) {
+    std::size_t i = at + 4;
+    const std::size_t pid_start = i;
+    while (i < name.size() && std::isdigit(static_cast<unsigned char>(name[i]))) ++i;
+    if (i == pid_start || i >= name.size() || name[i] != '-') continue;
+    const std::size_t n_start = ++i;
+    while (i < name.size() && std::isdigit(static_cast<unsigned char>(name[i]))) ++i;
+    if (i == n_start) continue;
+    if (i == name.size() || name[i] == '.') return true;
+  }
+  return false;
+}
+
+int remove_temp_files(const fs::path& dir) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) return 0;
+  std::vector<fs::path> stale;
+  for (fs::recursive_directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    std::error_code fec;
+    if (it->is_regular_file(fec) && is_temp_file(it->path())) stale.push_back(it->path());
+  }
+  if (ec) throw IoError(fmt::format("cannot list {}: {}", dir.string(), ec.message()));
+  for (const fs::path& p : stale) {
+    if (!fs::remove(p, ec) && ec) {
+      throw IoError(fmt::format("cannot remove {}: {}", p.string(), ec.message()));
+    }
+  }
+  return static_cast<int>(stale.size());
+}
+
+void require_free_space(const fs::path& dir, std::uintmax_t bytes, std::string_view what) {
+  fs::path existing = fs::absolute(dir);
+  std::error_code ec;
+  while (!fs::exists(existing, ec) && existing.has_parent_path() &&
+         existing != existing.parent_path()) {
+    existing = existing.parent_path();
+  }
+  const fs::space_info space = fs::space(existing, ec);
+  if (ec) {
+    throw IoError(fmt::format("cannot query the free space of {}: {}", existing.string(),
+                              ec.message()));
+  }
+  if (space.available < bytes) {
+    constexpr double kMiB = 1024.0 * 1024.0;
+    throw IoError(fmt::format(
+        "not enough disk space for {} in {}: needs about {:.0f} MiB, {:.0f} MiB free", what,
+        dir.string(), bytes / kMiB, space.available / kMiB));
+  }
 }
 
 void commit_temp_file(const fs::path& temp, const fs::path& path) {

@@ -37,9 +37,19 @@ class AtomicFile {
 // it, then call commit_temp_file(temp, path).
 fs::path temp_path_for(const fs::path& path);
 void commit_temp_file(const fs::path& temp, const fs::path& path);
+// Whether `path` names a temp file of the writers above (".<stem>.tmp<pid>-<n><ext>").
+bool is_temp_file(const fs::path& path);
+// Removes the temp files a killed writer left anywhere under `dir` (nothing if `dir` does not
+// exist); returns how many. Only for folders no other process is writing to.
+int remove_temp_files(const fs::path& dir);
 
 void write_file_atomic(const fs::path& path, std::string_view bytes);
 std::string read_file(const fs::path& path);  // throws IoError naming the file
+
+// Checks, before a stage writes large outputs, that the file system holding `dir` (or its
+// nearest existing parent) has `bytes` free. Throws IoError naming the folder, what needs the
+// space, how much it needs and how much is free.
+void require_free_space(const fs::path& dir, std::uintmax_t bytes, std::string_view what);
 
 // Creates the directory (and parents); throws IoError naming it on failure.
 void ensure_directory(const fs::path& dir);

@@ -60,6 +60,9 @@ struct SessionConfig {
   // Stages that also run on inputs derived from ground truth (synthetic sessions; DESIGN.md
   // "Oracle inputs"), so validation reports pipeline and oracle numbers side by side.
   std::vector<std::string> oracle;
+  // Preset files (relative to the session folder, e.g. ../config/presets/preview.yaml), each
+  // holding a `stages:` mapping, applied in order before this file's own stages section.
+  std::vector<std::string> presets;
   // Per-stage sections, each mapped by its stage onto its own options struct.
   YAML::Node stages;
 
@@ -70,6 +73,7 @@ struct SessionConfig {
     v("motions", motions, "motion classes (parametric motion spaces)");
     v("transitions", transitions, "transitions the motion graph allows");
     v("oracle", oracle, "stages that also run on ground-truth-derived inputs (validation)");
+    v("presets", presets, "files of stage options applied before stages:, in order");
     v("stages", stages, "per-stage options");
   }
   void check() const;  // unique names; transitions name known classes
@@ -85,12 +89,19 @@ class Session {
   const SessionConfig& config() const { return config_; }
   std::filesystem::path config_path() const { return root_ / "session.yaml"; }
 
-  // Maps stages.<stage> onto `opts` (defaults where absent); errors name session.yaml's line.
+  // Maps stages.<stage> onto `opts`: the defaults, then each preset's section, then
+  // session.yaml's; errors name the file and line the value came from.
   template <class T>
   void stage_options(const std::string& stage, T& opts) const {
-    YAML::Node node = config_.stages ? config_.stages[stage] : YAML::Node();
-    read_options(config_path().string(), node, "stages." + stage, opts);
+    for (const auto& layer : layers_) {
+      read_options(layer.file.string(), layer.stages[stage], "stages." + stage, opts);
+    }
   }
+  // The stages.<stage> sections that apply, in the order they are applied (presets first);
+  // what the driver hashes to tell whether a stage's options changed.
+  std::vector<YAML::Node> stage_sections(const std::string& stage) const;
+  // Whether any layer has a stages.<stage> section.
+  bool has_stage_section(const std::string& stage) const;
 
   std::filesystem::path dir(const std::string& sub) const { return root_ / sub; }
   std::filesystem::path calibration_dir() const { return root_ / "calibration"; }
@@ -103,8 +114,13 @@ class Session {
                                       int frame) const;
 
  private:
+  struct Layer {
+    std::filesystem::path file;  // the preset file or session.yaml
+    YAML::Node stages;           // its stages: mapping (empty map when absent)
+  };
   std::filesystem::path root_;
   SessionConfig config_;
+  std::vector<Layer> layers_;
 };
 
 // "000042": how every per-frame file is named.

@@ -10,6 +10,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <memory>
 #include <ctime>
 #include <nlohmann/json.hpp>
 
@@ -161,7 +162,8 @@ bool reads_any(const std::vector<std::string>& inputs,
 
 const std::vector<StageSpec>& stage_table() {
   // The data flow of DESIGN.md "Stages". Segment has no oracle: nothing precedes it but the
-  // capture. Validate reads every stage's outputs plus the ground truth.
+  // capture. Validate reads every stage's outputs plus the ground truth, and plays the
+  // session's control scripts (play/) on the assets.
   static const std::vector<StageSpec> table = {
       {"synth", {}, {"capture", "calibration", "ground_truth"}, false, {}},
       {"segment", {"capture", "calibration"}, {"segment"}, false, {}, {}, {},
@@ -178,7 +180,7 @@ const std::vector<StageSpec>& stage_table() {
        {"calibration", "capture", "ground_truth", "segment", "reconstruct", "align", "timewarp",
         "motionspace", "texture", "graph", "asset", "oracle", "reconstruct_oracle",
         "align_oracle", "timewarp_oracle", "motionspace_oracle", "texture_oracle",
-        "graph_oracle"},
+        "graph_oracle", "asset_oracle", kPlayFolder},
        {"reports"},
        false,
        {}},
@@ -314,10 +316,10 @@ std::uint64_t folder_bytes(const fs::path& session_root, const std::vector<std::
 std::string options_hash(const Session& session, const std::string& stage) {
   nlohmann::json top = yaml_to_json(to_yaml(session.config()));
   top.erase("stages");
-  const YAML::Node& stages = session.config().stages;
-  nlohmann::json section = nullptr;
-  if (stages.IsDefined() && stages.IsMap()) section = yaml_to_json(stages[stage]);
-  std::string text = "session:" + top.dump() + "\nstages." + stage + ":" + section.dump();
+  top.erase("presets");  // what they say is hashed below, not their file names
+  nlohmann::json sections = nlohmann::json::array();
+  for (const auto& section : session.stage_sections(stage)) sections.push_back(yaml_to_json(section));
+  std::string text = "session:" + top.dump() + "\nstages." + stage + ":" + sections.dump();
   return hash_hex(hash_bytes(text));
 }
 
@@ -406,8 +408,7 @@ std::set<std::string> configured_oracle(const Session& session, const std::vecto
 }
 
 bool session_uses_synth(const Session& session) {
-  const YAML::Node& stages = session.config().stages;
-  return stages.IsDefined() && stages.IsMap() && stages["synth"].IsDefined();
+  return session.has_stage_section("synth");
 }
 
 std::vector<StageSpec> plan_run(const Session& session, const std::vector<StageSpec>& built,
@@ -491,6 +492,37 @@ CaptureIndex session_capture(const Session& session) {
   return capture;
 }
 
+namespace {
+
+// Runs `args` (args[0] is the executable) and waits for it; its standard output goes to
+// `stdout_fd` when that is >= 0. Returns the exit code (128 + signal when killed).
+int spawn_and_wait(std::vector<std::string> args, int stdout_fd = -1) {
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+
+  std::fflush(stdout);
+  std::fflush(stderr);
+  posix_spawn_file_actions_t actions;
+  ::posix_spawn_file_actions_init(&actions);
+  if (stdout_fd >= 0) ::posix_spawn_file_actions_adddup2(&actions, stdout_fd, STDOUT_FILENO);
+  pid_t pid = 0;
+  int rc = ::posix_spawn(&pid, args[0].c_str(), &actions, nullptr, argv.data(), environ);
+  ::posix_spawn_file_actions_destroy(&actions);
+  if (rc != 0) throw IoError(fmt::format("cannot start {}: {}", args[0], std::strerror(rc)));
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0) {
+    if (errno != EINTR) {
+      throw IoError(fmt::format("waiting for {} failed: {}", args[0], std::strerror(errno)));
+    }
+  }
+  if (WIFEXITED(status)) return WEXITSTATUS(status);
+  if (WIFSIGNALED(status)) return 128 + WTERMSIG(status);
+  return kExitFailure;
+}
+
+}  // namespace
+
 int run_stage_process(const StageSpec& stage, const fs::path& session_root, int threads,
                       bool verbose, const std::vector<std::string>& job_arguments) {
   std::vector<std::string> args = {stage.executable.string(), session_root.string()};
@@ -501,27 +533,46 @@ int run_stage_process(const StageSpec& stage, const fs::path& session_root, int 
     args.push_back(std::to_string(threads));
   }
   if (verbose) args.push_back("-v");
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
-  argv.push_back(nullptr);
+  return spawn_and_wait(std::move(args));
+}
 
-  std::fflush(stdout);
-  std::fflush(stderr);
-  pid_t pid = 0;
-  int rc = ::posix_spawn(&pid, stage.executable.c_str(), nullptr, nullptr, argv.data(), environ);
-  if (rc != 0) {
-    throw IoError(fmt::format("cannot start {}: {}", stage.executable.string(), std::strerror(rc)));
-  }
-  int status = 0;
-  while (::waitpid(pid, &status, 0) < 0) {
-    if (errno != EINTR) {
-      throw IoError(fmt::format("waiting for {} failed: {}", stage.executable.string(),
-                                std::strerror(errno)));
+std::string default_options_yaml(const std::vector<StageSpec>& built) {
+  YAML::Node stages(YAML::NodeType::Map);
+  for (const auto& stage : built) {
+    // Each stage prints its own sections (`fourd-<stage> --print-defaults`); read them back
+    // through a temporary file so a stage's output is parsed whole.
+    std::FILE* tmp = std::tmpfile();
+    if (!tmp) throw IoError(fmt::format("cannot create a temporary file: {}", std::strerror(errno)));
+    std::unique_ptr<std::FILE, int (*)(std::FILE*)> closer(tmp, &std::fclose);
+    const int rc = spawn_and_wait({stage.executable.string(), "--print-defaults"}, ::fileno(tmp));
+    if (rc != kExitOk) {
+      throw IoError(fmt::format("{} --print-defaults failed with exit code {}",
+                                stage.executable.string(), rc));
     }
+    std::string text;
+    std::rewind(tmp);
+    char buffer[4096];
+    for (std::size_t n; (n = std::fread(buffer, 1, sizeof buffer, tmp)) > 0;) text.append(buffer, n);
+    YAML::Node sections;
+    try {
+      sections = YAML::Load(text);
+    } catch (const YAML::Exception& e) {
+      throw InputError(fmt::format("{} --print-defaults printed invalid YAML: {}",
+                                   stage.executable.string(), e.what()));
+    }
+    if (!sections.IsMap()) continue;  // a stage with no options prints nothing
+    for (const auto& kv : sections) stages[kv.first.as<std::string>()] = kv.second;
   }
-  if (WIFEXITED(status)) return WEXITSTATUS(status);
-  if (WIFSIGNALED(status)) return 128 + WTERMSIG(status);
-  return kExitFailure;
+  YAML::Node root(YAML::NodeType::Map);
+  root["stages"] = stages;
+  YAML::Emitter out;
+  out << root;
+  return fmt::format(
+      "# Every stage's section of session.yaml with its defaults, as `fourd defaults` prints\n"
+      "# them. Copy the sections you want to change into a session's stages:, or keep a set of\n"
+      "# changes as a preset (config/presets/) and list it under presets: in session.yaml.\n"
+      "{}\n",
+      out.c_str());
 }
 
 RunResult run_pipeline(const fs::path& session_dir, const std::vector<StageSpec>& built,
@@ -569,6 +620,12 @@ RunResult run_pipeline(const fs::path& session_dir, const std::vector<StageSpec>
     std::error_code ec;
     fs::remove(record_file, ec);
     if (ec) throw IoError(fmt::format("cannot remove {}: {}", record_file.string(), ec.message()));
+
+    // A run that was killed may have left its writers' temp files; they are not outputs.
+    for (const auto& out : stage.outputs) {
+      const int stale = remove_temp_files(root / out);
+      if (stale > 0) log::info("{}: removed {} temp file(s) of an interrupted run", out, stale);
+    }
 
     event.reason = reason;
     emit(StageEvent::Kind::kStarted);

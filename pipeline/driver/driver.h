@@ -59,6 +59,9 @@ struct StageSpec {
 
 // The folder of ground-truth-derived inputs, written by the "oracle" step.
 inline constexpr const char* kOracleFolder = "oracle";
+// Control scripts the user puts in the session (runtime/player.h); validation plays those
+// that follow a path. No stage writes them.
+inline constexpr const char* kPlayFolder = "play";
 // Completion record file name, inside the stage's first output folder.
 inline constexpr const char* kRecordFile = ".fourd_stage.json";
 
@@ -183,6 +186,10 @@ std::vector<StageSpec> plan_run(const Session& session, const std::vector<StageS
 // 128 + signal number when it was killed. Throws IoError when it cannot be started.
 int run_stage_process(const StageSpec& stage, const fs::path& session_root, int threads,
                       bool verbose, const std::vector<std::string>& job_arguments = {});
+
+// The defaults of every option of every built stage, as one YAML document with a `stages:`
+// mapping (what config/defaults.yaml holds), gathered from `fourd-<stage> --print-defaults`.
+std::string default_options_yaml(const std::vector<StageSpec>& built);
 
 struct StageEvent {
   enum class Kind { kSkipped, kStarted, kFinished, kFailed };

@@ -138,6 +138,9 @@ int main(int argc, char** argv) {
   CLI::App* status = app.add_subcommand("status", "show the state of every stage of a session");
   status->add_option("session", session_dir, "session folder (holds session.yaml)")->required();
 
+  CLI::App* defaults = app.add_subcommand(
+      "defaults", "print every stage's session.yaml options with their defaults (YAML)");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -159,6 +162,10 @@ int main(int argc, char** argv) {
       WorkflowFiles files = write_workflow(session_dir, built, workflow_request);
       log::info("fourd: wrote {} ({} jobs), {} and the Slurm profile {}", files.snakefile.string(),
                 files.jobs, files.config.string(), files.slurm_profile.string());
+      return kExitOk;
+    }
+    if (*defaults) {
+      std::fputs(default_options_yaml(built).c_str(), stdout);
       return kExitOk;
     }
     return command_status(session_dir, built);

@@ -373,6 +373,9 @@ void run_align(const Session& session, const StageArgs& args) {
       remesh_to_vertex_count(load_frame(frames[root]), options.template_vertices, options.remesh_iterations);
   ensure_directory(out);
   write_ply(out / "template.ply", template_mesh);
+  // Every aligned frame is the template's topology: its file's size once per frame.
+  require_free_space(out, fs::file_size(out / "template.ply") * frames.size(),
+                     fmt::format("align's {} frames", frames.size()));
   const TemplateModel model = build_template_model(template_mesh, options.registration);
   log::info("template: {} vertices, {} triangles, {} graph nodes ({:.1f} s)",
             template_mesh.num_vertices(), template_mesh.num_triangles(),

@@ -10,6 +10,7 @@ int main(int argc, char** argv) {
       "non-rigid registration of the template along the tree (embedded deformation + ARAP). "
       "Writes align/template.ply, align/<take>/<frame>.ply in template topology, tree.json, "
       "report.json (per-frame residuals, excluded frames and why) and options.yaml.",
-      /*takes_frame_range=*/true, /*supports_oracle=*/true};
+      /*takes_frame_range=*/true, /*supports_oracle=*/true,
+      {fourd::options_section<fourd::align::AlignOptions>("align")}};
   return fourd::run_stage_main(argc, argv, info, nullptr, fourd::align::run_align);
 }

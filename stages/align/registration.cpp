@@ -81,6 +81,62 @@ std::vector<Correspondence> find_correspondences(const std::vector<Vec3f>& posit
   return out;
 }
 
+// A frame point matched to the closest point of the deformed template (a barycentric point of
+// one template triangle). The forward matches only pull the template onto surface it is
+// already near; these pull it onto frame surface it has not reached yet (a limb that moved
+// far), which the forward matches alone would leave uncovered.
+struct ReverseMatch {
+  Tri triangle = Tri::Zero();     // template vertices
+  Vec3d barycentric = Vec3d::Zero();
+  Vec3d point = Vec3d::Zero();    // the frame point
+  Vec3d normal = Vec3d::Zero();   // the frame's unit normal there
+  double weight = 0;              // 0: no match
+};
+
+// The frame points the reverse matches start from: about one per template vertex, spread
+// evenly over the frame's vertices, with their unit normals.
+struct FrameSamples {
+  std::vector<Vec3f> points;
+  std::vector<Vec3f> normals;
+};
+
+FrameSamples sample_frame(const SurfaceQuery& target, std::size_t count) {
+  const std::vector<Vec3f>& positions = target.positions();
+  const std::vector<Vec3f> normals = vertex_normals(positions, target.triangles());
+  FrameSamples samples;
+  const std::size_t stride = std::max<std::size_t>(1, positions.size() / std::max<std::size_t>(count, 1));
+  for (std::size_t i = 0; i < positions.size(); i += stride) {
+    if (normals[i].isZero()) continue;  // not on any triangle
+    samples.points.push_back(positions[i]);
+    samples.normals.push_back(normals[i]);
+  }
+  return samples;
+}
+
+std::vector<ReverseMatch> find_reverse_correspondences(const TemplateModel& model,
+                                                       const std::vector<Vec3f>& positions,
+                                                       const FrameSamples& samples,
+                                                       double max_distance, double robust_scale,
+                                                       const RegistrationOptions& options) {
+  Mesh fitted;
+  fitted.positions = positions;
+  fitted.triangles = model.rest.triangles;
+  const SurfaceQuery query(fitted);
+  const float min_cos = cos_degrees(options.normal_angle);
+  std::vector<ReverseMatch> out(samples.points.size());
+  tbb::parallel_for(std::size_t{0}, samples.points.size(), [&](std::size_t i) {
+    const SurfaceHit hit = query.closest(samples.points[i], static_cast<float>(max_distance),
+                                         samples.normals[i], min_cos);
+    if (!hit.found) return;
+    out[i].triangle = model.rest.triangles[hit.triangle];
+    out[i].barycentric = hit.barycentric.cast<double>();
+    out[i].point = samples.points[i].cast<double>();
+    out[i].normal = samples.normals[i].cast<double>();
+    out[i].weight = robust_weight(hit.distance, robust_scale);
+  });
+  return out;
+}
+
 // ---- Geodesic neighbourhoods on the template ---------------------------------------------
 
 // Dijkstra along mesh edges from `source`, lowering `dist` where it finds shorter paths (so
@@ -219,7 +275,8 @@ std::vector<std::vector<double>> cotangent_weights(const Mesh& mesh,
 // vertex or a graph edge. Fixed for the template, so the sparse Cholesky analysis is reused.
 class GraphSystem {
  public:
-  explicit GraphSystem(const TemplateModel& model) : model_(model) {
+  // With `reverse_matches`, also the blocks the reverse matches need.
+  GraphSystem(const TemplateModel& model, bool reverse_matches) : model_(model) {
     const DeformationGraph& g = model.graph;
     nodes_ = static_cast<int>(g.node_vertex.size());
     for (int j = 0; j < nodes_; ++j) block_id(j, j);
@@ -228,6 +285,16 @@ class GraphSystem {
       for (int a = 0; a < k; ++a) {
         for (int b = 0; b < k; ++b) {
           int na = g.influence_node[v * k + a], nb = g.influence_node[v * k + b];
+          if (na >= 0 && nb >= 0 && na <= nb) block_id(na, nb);
+        }
+      }
+    }
+    // Reverse matches tie the nodes of a triangle's three vertices together.
+    for (const Tri& t : reverse_matches ? model.rest.triangles : std::vector<Tri>{}) {
+      for (int a = 0; a < 3 * k; ++a) {
+        for (int b = 0; b < 3 * k; ++b) {
+          const int na = g.influence_node[t[a / k] * k + a % k];
+          const int nb = g.influence_node[t[b / k] * k + b % k];
           if (na >= 0 && nb >= 0 && na <= nb) block_id(na, nb);
         }
       }
@@ -291,53 +358,99 @@ class GraphSystem {
   Eigen::VectorXd gradient_;
 };
 
+// The Jacobian of a deformed point with respect to one graph node's update (a rotation
+// vector and a translation): J = [S, w I].
+struct NodeJacobian {
+  int node = -1;
+  Mat3d s = Mat3d::Zero();
+  double w = 0;
+};
+
+// A combination sum_e c_e x(v_e) of deformed template vertices (one vertex, or a barycentric
+// point of a triangle): its position, and its Jacobian per node it depends on (at most
+// 3 * influences entries). Returns the number of nodes.
+int point_jacobian(const TemplateModel& model, const DeformationState& state, const int* vertices,
+                   const double* coefficients, int count, Vec3d* deformed, NodeJacobian* out) {
+  const DeformationGraph& g = model.graph;
+  const int k = g.influences;
+  int nodes = 0;
+  *deformed = Vec3d::Zero();
+  for (int e = 0; e < count; ++e) {
+    const int v = vertices[e];
+    const Vec3d rest = model.rest.positions[v].cast<double>();
+    for (int a = 0; a < k; ++a) {
+      const int j = g.influence_node[v * k + a];
+      if (j < 0) continue;
+      const double w = coefficients[e] * g.influence_weight[v * k + a];
+      const Vec3d x = state.rotation[j] * (rest - g.node_position[j]);
+      *deformed += w * (x + g.node_position[j] + state.translation[j]);
+      int slot = 0;
+      while (slot < nodes && out[slot].node != j) ++slot;
+      if (slot == nodes) {
+        out[nodes++] = NodeJacobian{j, Mat3d::Zero(), 0.0};
+      }
+      out[slot].s -= w * skew(x);
+      out[slot].w += w;
+    }
+  }
+  return nodes;
+}
+
+// Adds |P^(1/2) (point - target)|^2 for a point with the given node Jacobians, residual
+// e = point - target and symmetric weight matrix P.
+void add_point_term(const NodeJacobian* jac, int nodes, const Mat3d& p, const Vec3d& e,
+                    GraphSystem& system) {
+  const Vec3d pe = p * e;
+  for (int a = 0; a < nodes; ++a) {
+    Vec6 grad;
+    grad << jac[a].s.transpose() * pe, jac[a].w * pe;
+    system.add_gradient(jac[a].node, grad);
+    const Mat3d sp = jac[a].s.transpose() * p;
+    for (int b = 0; b < nodes; ++b) {
+      if (jac[a].node > jac[b].node) continue;
+      Mat6 block;
+      block << sp * jac[b].s, jac[b].w * sp, jac[a].w * p * jac[b].s, jac[a].w * jac[b].w * p;
+      system.add(jac[a].node, jac[b].node, block);
+    }
+  }
+}
+
 // One Gauss-Newton step of the graph energy; updates `state` (rotations, translations).
 // Returns false when the system could not be factorised.
 bool graph_gauss_newton_step(const TemplateModel& model, const std::vector<Correspondence>& matches,
-                             double stiffness, const RegistrationOptions& options,
-                             GraphSystem& system, Eigen::SimplicialLDLT<SparseMatrix>& solver,
-                             bool analyse, DeformationState* state) {
+                             const std::vector<ReverseMatch>& reverse, double stiffness,
+                             const RegistrationOptions& options, GraphSystem& system,
+                             Eigen::SimplicialLDLT<SparseMatrix>& solver, bool analyse,
+                             DeformationState* state) {
   const DeformationGraph& g = model.graph;
-  const int nv = static_cast<int>(model.rest.num_vertices()), k = g.influences;
+  const int nv = static_cast<int>(model.rest.num_vertices());
   system.clear();
   // Data weight per vertex: nodes / vertices, so that the balance with the regulariser does not
   // depend on the template's resolution.
   const double data_weight = static_cast<double>(g.node_vertex.size()) / nv;
+  NodeJacobian jac[3 * 8];
+  Vec3d deformed;
 
   // Data: point-to-plane plus a little point-to-point, with P = c (n n^T + mu I).
   for (int v = 0; v < nv; ++v) {
     const Correspondence& m = matches[v];
     if (m.weight <= 0) continue;
-    const Vec3d rest = model.rest.positions[v].cast<double>();
-    Vec3d deformed = Vec3d::Zero();
-    Mat3d s[8];
-    double w[8];
-    int node[8];
-    int count = 0;
-    for (int a = 0; a < k; ++a) {
-      const int j = g.influence_node[v * k + a];
-      if (j < 0) continue;
-      const Vec3d x = state->rotation[j] * (rest - g.node_position[j]);
-      deformed += g.influence_weight[v * k + a] * (x + g.node_position[j] + state->translation[j]);
-      s[count] = -skew(x);
-      w[count] = g.influence_weight[v * k + a];
-      node[count] = j;
-      ++count;
-    }
+    const double one = 1.0;
+    const int nodes = point_jacobian(model, *state, &v, &one, 1, &deformed, jac);
     const Mat3d p = data_weight * m.weight *
                     (m.normal * m.normal.transpose() + options.point_to_point * Mat3d::Identity());
-    const Vec3d pe = p * (deformed - m.point);
-    for (int a = 0; a < count; ++a) {
-      Vec6 grad;
-      grad << w[a] * s[a].transpose() * pe, w[a] * pe;
-      system.add_gradient(node[a], grad);
-      for (int b = 0; b < count; ++b) {
-        if (node[a] > node[b]) continue;
-        Mat6 block;
-        block << s[a].transpose() * p * s[b], s[a].transpose() * p, p * s[b], p;
-        system.add(node[a], node[b], w[a] * w[b] * block);
-      }
-    }
+    add_point_term(jac, nodes, p, deformed - m.point, system);
+  }
+  // Reverse data: frame points pulling the template surface points closest to them.
+  const double reverse_weight =
+      reverse.empty() ? 0.0 : options.reverse_weight * data_weight * nv / reverse.size();
+  for (const ReverseMatch& m : reverse) {
+    if (m.weight <= 0) continue;
+    const int nodes = point_jacobian(model, *state, m.triangle.data(), m.barycentric.data(), 3,
+                                     &deformed, jac);
+    const Mat3d p = reverse_weight * m.weight *
+                    (m.normal * m.normal.transpose() + options.point_to_point * Mat3d::Identity());
+    add_point_term(jac, nodes, p, deformed - m.point, system);
   }
 
   // Regulariser: each node predicts its neighbours' positions as rigidly as possible.
@@ -415,6 +528,8 @@ void refine_vertices(const TemplateModel& model, const SurfaceQuery& target,
   Eigen::SimplicialLDLT<SparseMatrix> solver;
   // A weak pull to the current positions keeps the system definite where nothing matches.
   const double anchor = 1e-4;
+  const FrameSamples samples =
+      options.reverse_weight > 0 ? sample_frame(target, model.rest.num_vertices()) : FrameSamples{};
   for (int it = 0; it < options.refine_iterations; ++it) {
     const std::vector<Vec3f> normals = vertex_normals(*positions, model.rest.triangles);
     const std::vector<Correspondence> matches =
@@ -423,8 +538,26 @@ void refine_vertices(const TemplateModel& model, const SurfaceQuery& target,
     const std::vector<Mat3d> rotations = local_rotations(model, *positions);
     SparseMatrix a = l;
     Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(nv, 3);
+    if (!samples.points.empty()) {
+      // Frame points pull the template's closest surface points (a triangle's barycentric
+      // combination): c |sum_k b_k x_k - q|^2 couples the triangle's vertices, which the
+      // Laplacian's pattern already does.
+      const std::vector<ReverseMatch> reverse = find_reverse_correspondences(
+          model, *positions, samples, options.final_max_distance, options.robust_scale, options);
+      const double scale = options.refine_weight * options.reverse_weight * nv / reverse.size();
+      for (const ReverseMatch& m : reverse) {
+        if (m.weight <= 0) continue;
+        const double c = scale * m.weight;
+        for (int r = 0; r < 3; ++r) {
+          for (int q = 0; q < 3; ++q) {
+            a.coeffRef(m.triangle[r], m.triangle[q]) += c * m.barycentric[r] * m.barycentric[q];
+          }
+          rhs.row(m.triangle[r]) += c * m.barycentric[r] * m.point.transpose();
+        }
+      }
+    }
     for (int i = 0; i < nv; ++i) {
-      Vec3d b = Vec3d::Zero();
+      Vec3d b = rhs.row(i).transpose();
       for (std::size_t k = 0; k < model.rings[i].size(); ++k) {
         const int j = model.rings[i][k];
         const Vec3d e0 = (model.rest.positions[i] - model.rest.positions[j]).cast<double>();
@@ -587,7 +720,9 @@ DeformationState register_to_surface(const TemplateModel& model, const Deformati
     apply_rigid(model, motion, &state);
   }
 
-  GraphSystem system(model);
+  const FrameSamples samples =
+      options.reverse_weight > 0 ? sample_frame(target, model.rest.num_vertices()) : FrameSamples{};
+  GraphSystem system(model, options.reverse_weight > 0);
   Eigen::SimplicialLDLT<SparseMatrix> solver;
   bool analysed = false;
   const int levels = static_cast<int>(options.stiffness.size());
@@ -596,13 +731,19 @@ DeformationState register_to_surface(const TemplateModel& model, const Deformati
     const double t = levels > 1 ? static_cast<double>(level) / (levels - 1) : 1.0;
     const double max_distance =
         options.max_distance * std::pow(options.final_max_distance / options.max_distance, t);
+    const double robust_scale = std::max(options.robust_scale, max_distance / 3);
     for (int it = 0; it < options.iterations_per_level; ++it) {
       positions = deform_with_graph(model, state);
       const std::vector<Correspondence> matches = find_correspondences(
           positions, vertex_normals(positions, model.rest.triangles), target, max_distance,
-          std::max(options.robust_scale, max_distance / 3), options);
-      if (!graph_gauss_newton_step(model, matches, options.stiffness[level], options, system,
-                                   solver, !analysed, &state)) {
+          robust_scale, options);
+      const std::vector<ReverseMatch> reverse =
+          options.reverse_weight > 0
+              ? find_reverse_correspondences(model, positions, samples, max_distance, robust_scale,
+                                             options)
+              : std::vector<ReverseMatch>{};
+      if (!graph_gauss_newton_step(model, matches, reverse, options.stiffness[level], options,
+                                   system, solver, !analysed, &state)) {
         throw SolverError("registration: the deformation graph system could not be solved");
       }
       analysed = true;

@@ -7,11 +7,13 @@
 //     geodesic farthest-point sampling, each with a rotation and a translation; every vertex
 //     follows a blend of its nearest nodes (by geodesic distance, so an arm resting on the body
 //     never moves with it). Gauss-Newton on closest-point (point-to-plane + a little
-//     point-to-point, normal-compatible, robustly weighted) and as-rigid-as-possible graph
-//     terms, with the regulariser relaxed level by level; the sparse Cholesky's ordering and
+//     point-to-point, normal-compatible, robustly weighted) matches both ways - each template
+//     vertex to the frame, and frame points to the deformed template, which pulls the template
+//     onto frame surface it has not reached yet (a limb that moved far) - and
+//     as-rigid-as-possible graph terms, with the regulariser relaxed level by level; the sparse Cholesky's ordering and
 //     symbolic analysis are computed once and reused by every iteration;
 //  3. a vertex-level as-rigid-as-possible refinement (Sorkine & Alexa 2007) towards the
-//     surface, regularised against the template's own shape, so detail never accumulates
+//     surface (matched both ways too), regularised against the template's own shape, so detail never accumulates
 //     errors along the tree.
 // Deformations are always expressed relative to the template at rest, so registering frame
 // after frame along the tree composes nothing but the starting guess.
@@ -36,6 +38,7 @@ struct RegistrationOptions {
   double normal_angle = 60;      // largest angle between matched normals [deg]
   double robust_scale = 0.01;    // Cauchy scale of the residuals [m]
   double point_to_point = 0.1;   // point-to-point weight relative to point-to-plane
+  double reverse_weight = 1.0;   // frame-to-template matches, relative to template-to-frame
   int refine_iterations = 6;     // vertex-level ARAP refinement iterations (0: none)
   double refine_weight = 2.0;    // data weight of the refinement relative to ARAP stiffness
   double coverage_distance = 0.03;  // a frame point farther from the fit is uncovered [m]
@@ -56,6 +59,9 @@ struct RegistrationOptions {
       Range{0, 180});
     v("robust_scale", robust_scale, "Cauchy scale of the residuals [m]", Range{1e-5, 10});
     v("point_to_point", point_to_point, "point-to-point weight relative to point-to-plane",
+      Range{0, 100});
+    v("reverse_weight", reverse_weight,
+      "weight of frame-to-template matches relative to template-to-frame ones (0: none)",
       Range{0, 100});
     v("refine_iterations", refine_iterations, "vertex-level refinement iterations",
       Range{0, 1000});

@@ -8,19 +8,10 @@
 #include <limits>
 
 #include "pipeline/core/error.h"
+#include "stages/common/embree_scene.h"
 
 namespace fourd::align {
 namespace {
-
-// One Embree device for the process: creating one per mesh costs more than the queries.
-RTCDevice shared_device() {
-  static RTCDevice device = [] {
-    RTCDevice d = rtcNewDevice(nullptr);
-    if (!d) throw Error("align: cannot create the Embree device");
-    return d;
-  }();
-  return device;
-}
 
 struct QueryState {
   const std::vector<Vec3f>* positions;
@@ -127,27 +118,7 @@ SurfaceQuery::SurfaceQuery(const Mesh& mesh) : impl_(std::make_unique<Impl>()) {
     s.face_normals.push_back(n / len);
     s.source.push_back(static_cast<int>(f));
   }
-  RTCDevice device = shared_device();
-  s.scene = rtcNewScene(device);
-  rtcSetSceneBuildQuality(s.scene, RTC_BUILD_QUALITY_HIGH);
-  if (!s.triangles.empty()) {
-    RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
-    auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(
-        geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), s.positions.size()));
-    auto* ib = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
-        geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), s.triangles.size()));
-    if (!vb || !ib) throw Error("align: Embree could not allocate mesh buffers");
-    for (std::size_t i = 0; i < s.positions.size(); ++i) {
-      std::memcpy(vb + 3 * i, s.positions[i].data(), 3 * sizeof(float));
-    }
-    for (std::size_t f = 0; f < s.triangles.size(); ++f) {
-      for (int k = 0; k < 3; ++k) ib[3 * f + k] = static_cast<unsigned>(s.triangles[f][k]);
-    }
-    rtcCommitGeometry(geom);
-    rtcAttachGeometry(s.scene, geom);
-    rtcReleaseGeometry(geom);
-  }
-  rtcCommitScene(s.scene);
+  s.scene = make_embree_scene(s.positions, s.triangles, RTC_BUILD_QUALITY_HIGH);
 }
 
 SurfaceQuery::~SurfaceQuery() = default;
@@ -171,5 +142,6 @@ SurfaceHit SurfaceQuery::closest(const Vec3f& p, float max_distance, const Vec3f
 }
 
 const std::vector<Vec3f>& SurfaceQuery::positions() const { return impl_->positions; }
+const std::vector<Tri>& SurfaceQuery::triangles() const { return impl_->triangles; }
 
 }  // namespace fourd::align

@@ -33,6 +33,8 @@ class SurfaceQuery {
                      float min_cos = -1.0f) const;
 
   const std::vector<Vec3f>& positions() const;
+  // The triangles it searches (the input's non-degenerate ones).
+  const std::vector<Tri>& triangles() const;
 
  private:
   struct Impl;

@@ -2,12 +2,34 @@
 
 #include <tbb/global_control.h>
 
+#include <charconv>
+#include <cstdio>
 #include <memory>
 
 #include "pipeline/core/error.h"
 #include "pipeline/core/log.h"
 
 namespace fourd {
+
+YAML::Node shortest_numbers(const YAML::Node& node) {
+  if (node.IsMap()) {
+    YAML::Node out(YAML::NodeType::Map);
+    for (const auto& kv : node) out[kv.first.as<std::string>()] = shortest_numbers(kv.second);
+    return out;
+  }
+  if (node.IsSequence()) {
+    YAML::Node out(YAML::NodeType::Sequence);
+    for (const auto& item : node) out.push_back(shortest_numbers(item));
+    return out;
+  }
+  if (!node.IsScalar()) return node;
+  const std::string& text = node.Scalar();
+  if (text.find_first_of(".eE") == std::string::npos) return node;  // integers, words
+  double value = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (ec != std::errc() || end != text.data() + text.size()) return node;
+  return YAML::Node(fmt::format("{}", value));
+}
 
 std::filesystem::path stage_input_dir(const Session& session, const StageArgs& args,
                                       const std::string& input_stage) {
@@ -53,10 +75,27 @@ int run_stage_main(int argc, char** argv, const StageInfo& info,
                  "previous stage's, and write to <stage>_oracle/");
   }
   if (add_options) add_options(app);
-  if (!info.options_help.empty()) {
-    app.footer(fmt::format("\nOptions in session.yaml, section stages.{} (name = default: "
-                           "meaning):\n{}",
-                           info.name, info.options_help));
+  if (!info.options.empty()) {
+    // A callback that ends the parse (as --help does), so no session argument is needed.
+    app.add_flag_callback(
+        "--print-defaults",
+        [&info] {
+          YAML::Node stages(YAML::NodeType::Map);
+          for (const auto& section : info.options) stages[section.name] = YAML::Clone(section.defaults);
+          YAML::Emitter out;
+          out << stages;
+          std::fputs(out.c_str(), stdout);
+          std::fputc('\n', stdout);
+          throw CLI::Success();
+        },
+        "print the stage's session.yaml sections with their defaults (YAML) and exit");
+    std::string footer;
+    for (const auto& section : info.options) {
+      footer += fmt::format("\nOptions in session.yaml, section stages.{} (name = default: "
+                            "meaning):\n{}",
+                            section.name, section.help);
+    }
+    app.footer(footer);
   }
   try {
     app.parse(argc, argv);

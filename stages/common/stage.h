@@ -6,6 +6,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "pipeline/core/frame_selection.h"
 #include "pipeline/core/session.h"
@@ -26,14 +27,31 @@ struct StageArgs {
   bool verbose = false;
 };
 
+// One section of session.yaml a stage reads (stages.<name>): its defaults as YAML and as the
+// help text of --help. Made from the options struct by options_section<T>(name).
+struct OptionsSection {
+  std::string name;       // "reconstruct" -> stages.reconstruct
+  std::string help;       // describe_options(T{})
+  YAML::Node defaults;    // to_yaml(T{})
+};
+
+// `node` with every non-integer number in its shortest round-trip form (0.1, not
+// 0.10000000000000001 as YAML's emitter writes doubles), for YAML meant to be read by people.
+YAML::Node shortest_numbers(const YAML::Node& node);
+
+template <class T>
+OptionsSection options_section(std::string name) {
+  return {std::move(name), describe_options(T{}), shortest_numbers(to_yaml(T{}))};
+}
+
 struct StageInfo {
   const char* name;         // "synth"
   const char* description;  // one paragraph for --help
   bool takes_frame_range = false;
   bool supports_oracle = false;
-  // The stage's section of session.yaml (stages.<name>) with defaults and help, shown at the
-  // end of --help: describe_options(TheOptions{}).
-  std::string options_help;
+  // The sections of session.yaml the stage reads, shown at the end of --help and printed as
+  // YAML by --print-defaults (what `fourd defaults` gathers into config/defaults.yaml).
+  std::vector<OptionsSection> options;
   // Accepts --finish (a per-frame stage split into jobs by the driver or a workflow).
   bool has_finish_job = false;
 };

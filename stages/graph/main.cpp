@@ -12,6 +12,6 @@ int main(int argc, char** argv) {
                         "asset/motion_graph.fourd (everything the runtime needs) and "
                         "graph/graph.json.",
                         /*takes_frame_range=*/false, /*supports_oracle=*/true,
-                        fourd::describe_options(fourd::graph::GraphOptions{})};
+                        {fourd::options_section<fourd::graph::GraphOptions>("graph")}};
   return fourd::run_stage_main(argc, argv, info, nullptr, fourd::graph::run_graph);
 }

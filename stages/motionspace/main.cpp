@@ -12,6 +12,6 @@ int main(int argc, char** argv) {
                         "<class>.json, table1.json and figure4.png (the paper's Table 1 and "
                         "Figure 4 on the pair of takes that differ most in rotation).",
                         /*takes_frame_range=*/false, /*supports_oracle=*/true,
-                        fourd::describe_options(fourd::motionspace::MotionspaceOptions{})};
+                        {fourd::options_section<fourd::motionspace::MotionspaceOptions>("motionspace")}};
   return fourd::run_stage_main(argc, argv, info, nullptr, fourd::motionspace::run_motionspace);
 }

@@ -9,7 +9,7 @@
 #include <numbers>
 
 #include "runtime/blend.h"
-#include "stages/motionspace/figure.h"
+#include "stages/common/figure.h"
 #include "stages/motionspace/hybrid_build.h"
 #include "stages/motionspace/nonlinear_blend.h"
 

@@ -11,7 +11,8 @@ int main(int argc, char** argv) {
       "reconstruct/report.json and (when the whole session is processed) a COLMAP check of the "
       "calibration in reconstruct/calibration_check/. Split into jobs (--take/--frames), each "
       "writes only its frames; the --finish job then writes the report and the check.",
-      /*takes_frame_range=*/true, /*supports_oracle=*/true};
+      /*takes_frame_range=*/true, /*supports_oracle=*/true,
+      {fourd::options_section<fourd::reconstruct::ReconstructOptions>("reconstruct")}};
   info.has_finish_job = true;
   fourd::reconstruct::CalibrationCheckRequest check;
   std::string check_frame;

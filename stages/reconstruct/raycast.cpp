@@ -7,21 +7,9 @@
 #include <limits>
 
 #include "pipeline/core/error.h"
+#include "stages/common/embree_scene.h"
 
 namespace fourd::reconstruct {
-namespace {
-
-// One Embree device for the process: creating one per mesh costs more than the rays.
-RTCDevice shared_device() {
-  static RTCDevice device = [] {
-    RTCDevice d = rtcNewDevice(nullptr);
-    if (!d) throw Error("reconstruct: cannot create the Embree device");
-    return d;
-  }();
-  return device;
-}
-
-}  // namespace
 
 struct MeshRaycaster::Impl {
   RTCScene scene = nullptr;
@@ -41,27 +29,7 @@ MeshRaycaster::MeshRaycaster(const Mesh& mesh) : impl_(std::make_unique<Impl>())
     float len = n.norm();
     s.face_normals.push_back(len > 0 ? Vec3f(n / len) : Vec3f::Zero());
   }
-  RTCDevice device = shared_device();
-  s.scene = rtcNewScene(device);
-  if (!mesh.triangles.empty()) {
-    RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
-    auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(
-        geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), s.positions.size()));
-    auto* ib = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
-        geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
-        mesh.triangles.size()));
-    if (!vb || !ib) throw Error("reconstruct: Embree could not allocate mesh buffers");
-    for (std::size_t i = 0; i < s.positions.size(); ++i) {
-      std::memcpy(vb + 3 * i, s.positions[i].data(), 3 * sizeof(float));
-    }
-    for (std::size_t f = 0; f < mesh.triangles.size(); ++f) {
-      for (int k = 0; k < 3; ++k) ib[3 * f + k] = static_cast<unsigned>(mesh.triangles[f][k]);
-    }
-    rtcCommitGeometry(geom);
-    rtcAttachGeometry(s.scene, geom);
-    rtcReleaseGeometry(geom);
-  }
-  rtcCommitScene(s.scene);
+  s.scene = make_embree_scene(s.positions, mesh.triangles);
 }
 
 MeshRaycaster::~MeshRaycaster() = default;

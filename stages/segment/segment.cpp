@@ -257,6 +257,15 @@ void run_segment(const Session& session, const StageArgs& args) {
     }
   }
 
+  if (!args.finish) {
+    std::uintmax_t pixels = 0;  // one 8-bit mask per camera and frame, uncompressed at most
+    for (const Camera& cam : cameras) {
+      pixels += static_cast<std::uintmax_t>(cam.intrinsics.width) * cam.intrinsics.height;
+    }
+    require_free_space(out_dir, items.size() * pixels,
+                       fmt::format("segment's masks of {} frames of {} cameras", items.size(),
+                                   cameras.size()));
+  }
   std::vector<std::vector<Coverage>> coverage(capture.takes.size(),
                                               std::vector<Coverage>(cameras.size()));
   std::vector<double> fractions(items.size() * cameras.size(), 0.0);

@@ -72,6 +72,12 @@ class Tokens {
     return line_ >= lines_.size();
   }
 
+  // Lines from the next token's to the end of the file: a bound on the records left.
+  std::size_t lines_left() {
+    skip_blank();
+    return lines_.size() - line_;
+  }
+
   std::string next(const char* expected) {
     if (at_end()) fail(fmt::format("unexpected end of file, expected {}", expected));
     last_line_ = static_cast<int>(line_) + 1;
@@ -178,8 +184,8 @@ class BvhParser {
     std::size_t channels = 0;
     for (const RawJoint& j : joints) channels += j.channels.size();
     if (channels == 0) tokens_.fail("the hierarchy has no channels");
-    const auto count = static_cast<std::size_t>(n);
-    frames.reserve(count);
+    const auto count = static_cast<std::size_t>(std::min(n, 1e15));  // more than any file holds
+    frames.reserve(std::min<std::size_t>(count, tokens_.lines_left()));
     for (std::size_t f = 0; f < count; ++f) {
       if (tokens_.at_end())
         tokens_.fail(fmt::format("the file ends after {} of the {} frames it declares", f, count));

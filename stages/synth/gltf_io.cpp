@@ -513,7 +513,10 @@ class GltfReader {
       const unsigned char* data = view_data(a.bufferView, what);
       const tinygltf::BufferView& view = model_.bufferViews[a.bufferView];
       const std::size_t stride = view.byteStride ? view.byteStride : element_size;
-      if (a.count > 0 && a.byteOffset + stride * (a.count - 1) + element_size > view.byteLength)
+      // Compared without multiplying out, so a huge count or offset cannot wrap around.
+      if (a.count > 0 && (a.byteOffset > view.byteLength ||
+                          element_size > view.byteLength - a.byteOffset ||
+                          (a.count - 1) > (view.byteLength - a.byteOffset - element_size) / stride))
         fail(fmt::format("{}: accessor {} reads past the end of buffer view {}", what, index,
                          a.bufferView));
       table.values.resize(table.count * table.components);
@@ -849,7 +852,12 @@ class CharacterImporter {
     if (p.indices >= 0) {
       const Table t = reader_.read(p.indices, {TINYGLTF_TYPE_SCALAR, {kUByte, kUShort, kUInt}},
                                    what + " indices");
-      for (double v : t.values) idx.push_back(static_cast<int>(v));
+      for (double v : t.values) {
+        // Checked before the conversion: an unsigned int index may not fit an int.
+        if (!(v < static_cast<double>(vertices)))
+          reader_.fail(fmt::format("{}: index {} out of range ({} vertices)", what, v, vertices));
+        idx.push_back(static_cast<int>(v));
+      }
     } else {
       idx.resize(vertices);
       std::iota(idx.begin(), idx.end(), 0);

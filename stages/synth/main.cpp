@@ -8,6 +8,6 @@ int main(int argc, char** argv) {
                         "Synthetic studio: renders a procedural performer with known geometry, "
                         "motion parameters and calibration from a virtual camera rig; writes "
                         "capture/, calibration/ and ground_truth/ (deterministic from the seed).",
-                        false, false, fourd::describe_options(fourd::synth::SynthOptions{})};
+                        false, false, {fourd::options_section<fourd::synth::SynthOptions>("synth")}};
   return fourd::run_stage_main(argc, argv, info, nullptr, fourd::synth::run_synth);
 }

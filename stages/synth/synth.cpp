@@ -160,6 +160,20 @@ void run_synth(const Session& session, const StageArgs& args) {
     if (options.center_takes) center_on_volume(clips.back());
   }
   std::vector<Camera> rig = make_rig(options.rig);
+  {
+    // Per frame and camera an 8-bit RGB capture and a silhouette, uncompressed (the PNGs are
+    // smaller; the noisy captures not by much), per frame a ground-truth mesh.
+    std::uintmax_t frames = 0;
+    for (const MotionClip& clip : clips) frames += clip.poses.size();
+    std::uintmax_t pixels = 0;
+    for (const Camera& cam : rig) {
+      pixels += static_cast<std::uintmax_t>(cam.intrinsics.width) * cam.intrinsics.height;
+    }
+    const std::uintmax_t mesh_bytes = 12 * character.skin.rest.num_vertices() +
+                                      13 * character.skin.rest.num_triangles() + 512;
+    require_free_space(session.root(), frames * (4 * pixels + mesh_bytes),
+                       fmt::format("synth's {} frames of {} cameras", frames, rig.size()));
+  }
   prepare_output_dirs(session);
 
   // Calibration as the studio would deliver it, and the truth for validation.

@@ -11,6 +11,6 @@ int main(int argc, char** argv) {
                         "dynamic time warping and writes timewarp/<class>.twarp (resampled shapes, "
                         "root curves, timing) and timewarp/<class>.json.",
                         /*takes_frame_range=*/false, /*supports_oracle=*/true,
-                        fourd::describe_options(fourd::timewarp::TimewarpOptions{})};
+                        {fourd::options_section<fourd::timewarp::TimewarpOptions>("timewarp")}};
   return fourd::run_stage_main(argc, argv, info, nullptr, fourd::timewarp::run_timewarp);
 }

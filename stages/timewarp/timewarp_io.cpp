@@ -84,10 +84,12 @@ WarpedClass read_warped_class(const std::filesystem::path& path) {
   c.num_vertices = r.read<std::int32_t>();
   c.num_samples = r.read<std::int32_t>();
   c.triangles = r.read_vector<Tri>();
-  c.template_positions = r.read_matrix<Eigen::MatrixXd>();
-  if (c.template_positions.rows() != 3) {
+  // Checked before the assignment: a 3 x N matrix cannot hold another row count.
+  const Eigen::MatrixXd positions = r.read_matrix<Eigen::MatrixXd>();
+  if (positions.rows() != 3) {
     throw InputError(fmt::format("{}: the template is not 3 x #V", path.string()));
   }
+  c.template_positions = positions;
   c.character_height = r.read<double>();
   const auto num_takes = r.read<std::uint64_t>();
   if (num_takes > 3) {

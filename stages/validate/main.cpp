@@ -12,7 +12,9 @@ int main(int argc, char** argv) {
                  "writes reports/metrics.json and reports/report.md (with pictures). Stages whose "
                  "outputs are absent are skipped. With --prepare-oracle, writes oracle/ instead: "
                  "stage inputs derived from the ground truth (options: stages.oracle).",
-                 false, false};
+                 false, false,
+                 {options_section<validate::ValidateOptions>("validate"),
+                  options_section<validate::OracleOptions>("oracle")}};
   bool prepare_oracle = false;
   return run_stage_main(
       argc, argv, info,

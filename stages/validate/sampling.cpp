@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <opencv2/imgproc.hpp>
 
 namespace fourd::validate {
 
@@ -55,6 +56,19 @@ double percentile(std::vector<double> v, double q) {
       std::min(v.size() - 1, static_cast<std::size_t>(q * (v.size() - 1) + 0.5));
   std::nth_element(v.begin(), v.begin() + k, v.end());
   return v[k];
+}
+
+cv::Mat panel(const cv::Mat& image, int width, int interpolation, const std::string& label) {
+  double scale = double(width) / image.cols;
+  cv::Mat out;
+  cv::resize(image, out, {width, std::max(1, static_cast<int>(std::lround(image.rows * scale)))}, 0,
+             0, interpolation);
+  if (out.channels() == 1) cv::cvtColor(out, out, cv::COLOR_GRAY2BGR);
+  double font = std::max(0.3, 0.5 * width / 480.0);  // readable, and fits narrow panels
+  cv::Point at{6, static_cast<int>(6 + 22 * font)};
+  cv::putText(out, label, at, cv::FONT_HERSHEY_SIMPLEX, font, {0, 0, 0}, 3, cv::LINE_AA);
+  cv::putText(out, label, at, cv::FONT_HERSHEY_SIMPLEX, font, {255, 255, 255}, 1, cv::LINE_AA);
+  return out;
 }
 
 }  // namespace fourd::validate

@@ -1,7 +1,8 @@
 #pragma once
 // Small helpers the validators share: which takes and frames exist, which to sample,
-// percentiles.
+// percentiles, picture panels.
 #include <filesystem>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
 
@@ -21,5 +22,9 @@ std::vector<int> sample_frames(int frames, int count);
 
 // The q-quantile (0..1) of `v` by the nearest rank; 0 for an empty vector.
 double percentile(std::vector<double> v, double q);
+
+// One image panel scaled to `width` (`interpolation` as cv::resize's), grey turned to BGR,
+// with a label in the top-left corner.
+cv::Mat panel(const cv::Mat& image, int width, int interpolation, const std::string& label);
 
 }  // namespace fourd::validate

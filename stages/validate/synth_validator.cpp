@@ -133,20 +133,6 @@ FrameCheck check_frame(const Session& session, const std::vector<Camera>& camera
   return check;
 }
 
-// One image panel scaled to `width`, with a label in the top-left corner.
-cv::Mat panel(const cv::Mat& image, int width, int interpolation, const std::string& label) {
-  double scale = double(width) / image.cols;
-  cv::Mat out;
-  cv::resize(image, out, {width, std::max(1, static_cast<int>(std::lround(image.rows * scale)))}, 0,
-             0, interpolation);
-  if (out.channels() == 1) cv::cvtColor(out, out, cv::COLOR_GRAY2BGR);
-  double font = std::max(0.3, 0.5 * width / 480.0);  // readable, and fits narrow panels
-  cv::Point at{6, static_cast<int>(6 + 22 * font)};
-  cv::putText(out, label, at, cv::FONT_HERSHEY_SIMPLEX, font, {0, 0, 0}, 3, cv::LINE_AA);
-  cv::putText(out, label, at, cv::FONT_HERSHEY_SIMPLEX, font, {255, 255, 255}, 1, cv::LINE_AA);
-  return out;
-}
-
 // Rows: cameras; columns: the capture image, and the same image with the ground-truth
 // silhouette outline in red.
 Picture picture_take(const ValidationContext& ctx, const std::vector<Camera>& cameras,

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <ctime>
 #include <exception>
+#include <tuple>
 
 #include "pipeline/core/error.h"
 #include "pipeline/core/files.h"
@@ -82,6 +83,27 @@ std::string report_markdown(const Session& session, const std::vector<StageRepor
 
 }  // namespace
 
+std::vector<RunFolder> run_folders(const Session& session, const std::string& stage,
+                                   const std::string& marker) {
+  std::vector<RunFolder> out;
+  for (const auto& [suffix, input, label] :
+       {std::tuple{"", InputKind::kPipeline, "pipeline"},
+        std::tuple{"_oracle", InputKind::kOracle, "oracle"}}) {
+    std::filesystem::path dir = session.dir(stage + suffix);
+    std::error_code ec;
+    if (std::filesystem::exists(dir / marker, ec)) out.push_back({dir, input, label});
+  }
+  return out;
+}
+
+nlohmann::json read_json(const std::filesystem::path& path) {
+  try {
+    return nlohmann::json::parse(read_file(path));
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(fmt::format("{}: not valid JSON: {}", path.string(), e.what()));
+  }
+}
+
 const std::vector<ValidatorEntry>& validators() {
   static const std::vector<ValidatorEntry> list = {
       {"synth", validate_synth},
@@ -91,6 +113,8 @@ const std::vector<ValidatorEntry>& validators() {
       {"timewarp", validate_timewarp},
       {"blend", validate_blend},
       {"transitions", validate_transitions},
+      {"paths", validate_paths},
+      {"texture", validate_texture},
   };
   return list;
 }

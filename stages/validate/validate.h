@@ -75,6 +75,18 @@ struct ValidationContext {
   std::filesystem::path reports_dir;  // where pictures go
 };
 
+// A stage's output folder of one run: <stage>/ (pipeline inputs) or <stage>_oracle/.
+struct RunFolder {
+  std::filesystem::path dir;
+  InputKind input;
+  const char* label;  // "pipeline" | "oracle"
+};
+// <stage>/ and <stage>_oracle/, those that hold `marker` (a file the stage writes last).
+std::vector<RunFolder> run_folders(const Session& session, const std::string& stage,
+                                   const std::string& marker);
+// Parses a JSON file; InputError naming it when it is not valid JSON.
+nlohmann::json read_json(const std::filesystem::path& path);
+
 using Validator = std::function<StageReport(const ValidationContext&)>;
 struct ValidatorEntry {
   std::string stage;
@@ -93,6 +105,16 @@ StageReport validate_timewarp(const ValidationContext& context);
 StageReport validate_blend(const ValidationContext& context);
 // Motion graph: Table 2 from graph/table2.json (transitions.*).
 StageReport validate_transitions(const ValidationContext& context);
+// Textures: texture/ and texture_oracle/ rendered into the studio cameras against the captured
+// images inside the ground-truth silhouettes (texture.psnr_db), unseen texels, seams, time
+// (validate_texture.cpp).
+StageReport validate_texture(const ValidationContext& context);
+
+// Path following of the runtime: every control script with a path in the session's play/
+// folder played on asset/ and asset_oracle/ (distance from the path, length error; top-down
+// plots), and a transition filmstrip at several trellis depths (paper Figure 7)
+// (validate_paths.cpp).
+StageReport validate_paths(const ValidationContext& context);
 
 // segment/ silhouettes against ground_truth/silhouettes/: segment.iou_mean (validate_segment.cpp).
 StageReport validate_segment(const ValidationContext& context);

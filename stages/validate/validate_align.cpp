@@ -240,6 +240,21 @@ std::string take_table(const AlignmentErrors& e, const AlignmentErrors* sequenti
   return md;
 }
 
+// The frames with the largest correspondence error, worst first, as a markdown list (where to
+// look first when the totals are off).
+std::string worst_frames(const AlignmentErrors& e, std::size_t count) {
+  std::vector<std::pair<double, const AlignedFrameError*>> order;
+  for (const auto& f : e.frames) order.emplace_back(rms(f.correspondence), &f);
+  std::sort(order.begin(), order.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+  order.resize(std::min(order.size(), count));
+  std::string md = "Worst frames (correspondence rms, surface rms, flipped triangles):\n\n";
+  for (const auto& [value, f] : order) {
+    md += fmt::format("- {}/{}: {:.1f} mm, {:.1f} mm, {}\n", f->take, f->frame, 1e3 * value,
+                      1e3 * rms(f->surface), f->flipped);
+  }
+  return md + "\n";
+}
+
 }  // namespace
 
 StageReport validate_align(const ValidationContext& ctx) {
@@ -296,6 +311,7 @@ StageReport validate_align(const ValidationContext& ctx) {
     }
     report.details += fmt::format("**{}** (root {}, {} frames):\n\n{}\n", v.folder, errors.root,
                                   errors.frames.size(), take_table(errors, sequential.get()));
+    report.details += worst_frames(errors, 8);
     Picture p;
     p.file = fmt::format("{}_correspondence.png", v.folder);
     write_image_atomic(ctx.reports_dir / p.file,

@@ -17,34 +17,6 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-struct RunFolder {
-  fs::path dir;
-  InputKind input;
-  const char* label;
-};
-
-// <stage>/ (pipeline) and <stage>_oracle/ (oracle) that hold `marker`.
-std::vector<RunFolder> run_folders(const Session& session, const std::string& stage,
-                                   const std::string& marker) {
-  std::vector<RunFolder> out;
-  for (const auto& [suffix, input, label] :
-       {std::tuple{"", InputKind::kPipeline, "pipeline"},
-        std::tuple{"_oracle", InputKind::kOracle, "oracle"}}) {
-    fs::path dir = session.dir(stage + suffix);
-    std::error_code ec;
-    if (fs::exists(dir / marker, ec)) out.push_back({dir, input, label});
-  }
-  return out;
-}
-
-json read_json(const fs::path& path) {
-  try {
-    return json::parse(read_file(path));
-  } catch (const json::exception& e) {
-    throw InputError(fmt::format("{}: not valid JSON: {}", path.string(), e.what()));
-  }
-}
-
 double wrap_half(double x) { return x - std::floor(x + 0.5); }  // into [-0.5, 0.5)
 
 struct PhaseErrors {

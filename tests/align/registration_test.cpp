@@ -88,10 +88,12 @@ TEST(Registration, SmoothDeformationOfACapsuleIsRecoveredFromFreshConnectivity) 
   std::cout << "capsule bend: correspondence rms " << rms * 1e3 << " mm, max "
             << max_error(fit.positions, expected) * 1e3 << " mm, surface rms "
             << stats.surface_rms * 1e3 << " mm\n";
-  // The goal is a few mm; today's registration gets about 20 mm rms here (the error sits at the
-  // joint and the far end, where the embedded graph's ARAP prior resists the joint's strain).
-  // This bound guards against regressions until the prior is improved.
-  EXPECT_LT(rms, 0.025);
+  // The goal is a few mm. Registration gets 17 mm rms here (19.6 mm before the template was
+  // also matched from the frame's side); the surface itself fits to 0.3 mm, so what is left is
+  // material sliding along the surface, where the embedded graph's ARAP prior resists the
+  // joint's strain (more Gauss-Newton iterations converge to about 14 mm). This bound guards
+  // against regressions until the prior is improved.
+  EXPECT_LT(rms, 0.020);
   EXPECT_LT(stats.surface_rms, 0.001);
   EXPECT_EQ(stats.flipped_triangles, 0);
 }

@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cstdlib>
 #include <fstream>
+#include <functional>
 
 #include "pipeline/core/files.h"
 
@@ -110,9 +111,10 @@ TEST(StageTable, PipelineOrderAndDataFlow) {
   std::set<std::string> written;
   for (const auto& s : table) {
     for (const auto& in : s.inputs) {
-      // Oracle folders are written by the oracle runs (with_oracle_variants), not the table.
+      // Oracle folders are written by the oracle runs (with_oracle_variants), not the table;
+      // control scripts by the user.
       bool oracle = in == kOracleFolder || in.ends_with("_oracle");
-      EXPECT_TRUE(oracle || written.count(in)) << s.name << " reads " << in;
+      EXPECT_TRUE(oracle || in == kPlayFolder || written.count(in)) << s.name << " reads " << in;
     }
     for (const auto& out : s.outputs) EXPECT_TRUE(written.insert(out).second) << out;
   }
@@ -389,10 +391,10 @@ TEST_F(DriverTest, StatusReportsDoneChangedAndNotRun) {
 // Oracle variants of the real stage table read ground truth wherever it can stand in for their
 // input (so each inherits no error from the stages before it), and chain otherwise.
 TEST_F(DriverTest, OracleVariantsReadGroundTruthWhereItStandsIn) {
-  write_yaml("name: test\noracle: [align, timewarp, motionspace, graph]\n");
+  write_yaml("name: test\noracle: [align, timewarp, motionspace, texture, graph]\n");
   std::vector<StageSpec> built;
   for (const auto& s : stage_table()) {
-    if (s.name != "synth" && s.name != "texture") built.push_back(s);
+    if (s.name != "synth") built.push_back(s);
   }
   const Session session = Session::open(session_);
   std::map<std::string, std::vector<std::string>> inputs;
@@ -401,7 +403,11 @@ TEST_F(DriverTest, OracleVariantsReadGroundTruthWhereItStandsIn) {
   EXPECT_EQ(inputs["align_oracle"], (std::vector<std::string>{"oracle/reconstruct"}));
   EXPECT_EQ(inputs["timewarp_oracle"], (std::vector<std::string>{"oracle/align"}));
   EXPECT_EQ(inputs["motionspace_oracle"], (std::vector<std::string>{"timewarp_oracle"}));
-  EXPECT_EQ(inputs["graph_oracle"][0], "motionspace_oracle");
+  // Texture reads the ground-truth meshes and the capture itself (raw data, never an oracle).
+  EXPECT_EQ(inputs["texture_oracle"],
+            (std::vector<std::string>{"oracle/align", "capture", "calibration"}));
+  EXPECT_EQ(inputs["graph_oracle"],
+            (std::vector<std::string>{"motionspace_oracle", "texture_oracle"}));
   EXPECT_TRUE(inputs.count("oracle"));  // the preparation step runs before them
 }
 
@@ -445,6 +451,47 @@ TEST_F(SynthDriverTest, SyntheticSessionRunsSynthFirst) {
   EXPECT_EQ(run().ran, (std::vector<std::string>{"synth", "segment"}));
 }
 
+TEST_F(DriverTest, PresetsApplyBeforeSessionYamlAndTheirChangesRerun) {
+  write_text(dir_ / "presets" / "p.yaml", "stages:\n  copy: {mode: slow, level: 2}\n");
+  write_yaml("name: test\nfps: 25\npresets: [../presets/p.yaml]\n"
+             "stages:\n  make: {gain: 1}\n  copy: {mode: fast}\n");
+  Session session = Session::open(session_);
+  // Both layers apply to copy, the preset first; make has only session.yaml's.
+  ASSERT_EQ(session.stage_sections("copy").size(), 2u);
+  EXPECT_EQ(session.stage_sections("copy")[0]["level"].as<int>(), 2);
+  EXPECT_EQ(session.stage_sections("copy")[1]["mode"].as<std::string>(), "fast");
+  EXPECT_EQ(session.stage_sections("make").size(), 1u);
+  run();
+  // Editing the preset reruns the stages whose section it changes, and only those.
+  write_text(dir_ / "presets" / "p.yaml", "stages:\n  copy: {mode: slow, level: 3}\n");
+  EXPECT_EQ(run().ran, (std::vector<std::string>{"copy", "sum"}));
+  EXPECT_TRUE(run().ran.empty());
+}
+
+TEST_F(DriverTest, BadPresetsAreConfigErrorsNamingTheFile) {
+  auto error_of = [&](const std::string& preset_text) {
+    write_text(dir_ / "p.yaml", preset_text);
+    write_yaml("name: test\npresets: [../p.yaml]\n");
+    try {
+      Session::open(session_);
+    } catch (const ConfigError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_NE(error_of("stages: {copy: {mode: slow}}\nfps: 3\n").find("p.yaml:2: unknown key 'fps'"),
+            std::string::npos);
+  EXPECT_NE(error_of("stages: [1, 2]\n").find("expected a mapping"), std::string::npos);
+  write_yaml("name: test\npresets: [nowhere.yaml]\n");
+  try {
+    Session::open(session_);
+    ADD_FAILURE() << "a missing preset was accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("'nowhere.yaml' does not exist"), std::string::npos)
+        << e.what();
+  }
+}
+
 // The `fourd` executable itself, when it is built: exit codes of the command line.
 int run_command(const std::string& command) {
   int status = std::system((command + " >/dev/null 2>&1").c_str());
@@ -460,6 +507,50 @@ TEST_F(DriverTest, FourdExecutableExitCodes) {
   EXPECT_EQ(run_command(fourd.string() + " --help"), kExitOk);
   EXPECT_EQ(run_command(fourd.string()), kExitUsage);
   EXPECT_EQ(run_command(fourd.string() + " status " + session_.string()), kExitOk);
+}
+
+// config/defaults.yaml is what `fourd defaults` prints from the built stages: regenerate it
+// with `build/bin/fourd defaults > config/defaults.yaml` when an option changes.
+TEST(DefaultsFile, MatchesWhatTheBuiltStagesPrint) {
+  fs::path fourd = fs::path(FOURD_BIN_DIR) / "fourd";
+  if (!fs::exists(fourd)) GTEST_SKIP() << "fourd is not built";
+  std::vector<StageSpec> built = built_stages(FOURD_BIN_DIR);
+  ASSERT_FALSE(built.empty());
+  const std::string printed = default_options_yaml(built);
+  const std::string committed = read_text(fs::path(FOURD_SOURCE_DIR) / "config" / "defaults.yaml");
+  EXPECT_EQ(printed, committed) << "config/defaults.yaml is out of date: regenerate it with "
+                                   "`fourd defaults > config/defaults.yaml`";
+  // Every stage that has options is in it, and each section maps back onto its stage.
+  YAML::Node doc = YAML::Load(printed);
+  for (const char* stage : {"synth", "segment", "reconstruct", "align", "timewarp",
+                            "motionspace", "graph", "validate", "oracle"}) {
+    EXPECT_TRUE(doc["stages"][stage].IsMap()) << stage;
+  }
+}
+
+// Every preset under config/presets/ is a valid preset: a session using it opens, and each
+// section names a stage section that config/defaults.yaml knows, with keys it knows.
+TEST(DefaultsFile, PresetsNameOnlyKnownOptions) {
+  const fs::path config = fs::path(FOURD_SOURCE_DIR) / "config";
+  YAML::Node defaults = YAML::LoadFile((config / "defaults.yaml").string());
+  std::function<void(const YAML::Node&, const YAML::Node&, const std::string&)> known =
+      [&](const YAML::Node& preset, const YAML::Node& reference, const std::string& path) {
+        for (const auto& kv : preset) {
+          const std::string key = kv.first.as<std::string>();
+          ASSERT_TRUE(reference[key].IsDefined()) << path << "." << key << " is not an option";
+          if (kv.second.IsMap() && reference[key].IsMap()) {
+            known(kv.second, reference[key], path + "." + key);
+          }
+        }
+      };
+  int count = 0;
+  for (const auto& entry : fs::directory_iterator(config / "presets")) {
+    if (entry.path().extension() != ".yaml") continue;
+    ++count;
+    YAML::Node preset = YAML::LoadFile(entry.path().string());
+    known(preset["stages"], defaults["stages"], entry.path().filename().string() + ": stages");
+  }
+  EXPECT_GT(count, 0);
 }
 
 }  // namespace

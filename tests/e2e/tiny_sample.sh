@@ -10,6 +10,8 @@ bin="${FOURD_BIN:?FOURD_BIN must name the folder of the fourd executables}"
 rm -rf "$work"
 mkdir -p "$work"
 cp "$recipe/session.yaml" "$work/session.yaml"
+# The sample's control scripts: validation plays those that follow a path on the assets.
+cp -r "$recipe/../play" "$work/play"
 
 echo "== first run"
 "$bin/fourd" run "$work"
@@ -48,30 +50,35 @@ need("timewarp.pipeline.phase_error_frames", 0, 2)
 need("timewarp.oracle.phase_error_frames", 0, 1)
 need("blend.oracle.hybrid3_max_error_pct", 0, 1)
 need("blend.oracle.parameter_error_pct", 0, 2)
+# Textures rendered back into the studio cameras (320x240 images, 512x512 textures here).
+need("texture.oracle.psnr_db", 25, 60)
+need("texture.pipeline.psnr_db", 15, 60)
+need("texture.oracle.unseen_texels_pct", 0, 10)
 need("transitions.pipeline.online_depth12_latency_s", 0.0, 5.0)
 need("transitions.pipeline.precomputed10_latency_s", 0.0, 5.0)
 print("metrics ok")
 PY
 
-echo "== the headless player follows paths on the tiny assets"
-# The root stays within 0.25 m of the path. The root curves come from aligned meshes whose
-# alignment error makes the root wobble, which lengthens the travelled path (about 4 % on the
-# pipeline asset after timewarp's root smoothing; 0.4 % on ground-truth meshes), so the length
-# is only guarded here against gross errors.
-for asset in asset_oracle asset; do
-  for script in straight s_curve gap; do
-    "$bin/fourd-play" "$work/$asset/motion_graph.fourd" "$recipe/../play/$script.txt" \
-        -o "$work/play_${asset}_$script" --no-meshes
-    python3 - "$work/play_${asset}_$script/summary.json" "$asset $script" <<'PY'
+echo "== the runtime follows the sample's paths (played by validation on both assets)"
+python3 - "$work/reports/metrics.json" <<'PY'
 import json, sys
-s = json.load(open(sys.argv[1]))
-p = s["path"]
-print(f"  {sys.argv[2]}: max error {p['max_error_m']:.3f} m, length error {p['length_error_pct']:.2f} %")
-assert p["done"], "path not finished"
-assert p["max_error_m"] <= 0.25, "root left the path by more than 0.25 m"
-assert abs(p["length_error_pct"]) <= 15, "path length error above 15 %"
+m = json.load(open(sys.argv[1]))
+for asset in ("pipeline", "oracle"):
+    p = m["paths"][asset]
+    for script in ("straight", "s_curve", "gap"):
+        print(f"  {asset} {script}: max distance {p[script + '_max_error_m']:.3f} m, "
+              f"length error {p[script + '_length_error_pct']:+.2f} %")
+    assert p["finished"] == 3, f"{asset}: a path was not followed to its end"
+    assert p["max_error_m"] <= 0.25, f"{asset}: the root left a path by more than 0.25 m"
+    # The goal is 2 %. On the pipeline asset the root curves come from aligned meshes whose
+    # jitter lengthens the root's path (3.6-4.1 % before this was measured against the stretch
+    # of path covered), so there the length is guarded against gross errors only.
+    limit = 2 if asset == "oracle" else 8
+    assert abs(p["length_error_pct"]) <= limit, f"{asset}: path length error above {limit} %"
+print("paths ok")
 PY
-  done
+for f in paths_pipeline.png paths_oracle.png transition_filmstrip_pipeline.png; do
+  test -s "$work/reports/$f" || { echo "validation drew no reports/$f"; exit 1; }
 done
 "$bin/fourd-play" "$work/asset/motion_graph.fourd" "$recipe/../play/timeline.txt" -o "$work/play_timeline" --mesh-every 10
 test -n "$(ls "$work/play_timeline/meshes")" || { echo "fourd-play wrote no mesh"; exit 1; }

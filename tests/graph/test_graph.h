@@ -157,8 +157,50 @@ inline SpaceRecipe turn_recipe() {
   return r;
 }
 
-// locomotion <-> jump_length (+ locomotion <-> turning when `with_turning`), self-loops on.
-inline MotionGraph make_test_graph(bool with_turning = false, double fps = 25) {
+// A one-shot "reach": the tube bends forward and comes back, more for the second input.
+inline SpaceRecipe reach_recipe() {
+  SpaceRecipe r;
+  r.name = "reach";
+  r.cyclic = false;
+  r.samples = 21;
+  r.parameter = {0, 1};  // replaced by the measured hand heights (make_reach_space)
+  r.parameter_name = "reach";
+  r.amplitude = {40, 80};
+  r.duration = {1.5, 1.5};
+  r.forward = {0.1, 0.1};
+  r.direction = 0;
+  return r;
+}
+
+// The reach space, its parameter measured as the motion spaces stage measures it: the height
+// of the vertex that moves furthest (the "hand") at its furthest point, per input.
+inline MotionSpace make_reach_space() {
+  MotionSpace s = make_test_space(reach_recipe());
+  const BlendSpace& b = s.blend;
+  for (int k = 0; k < s.num_inputs(); ++k) {
+    double furthest = -1, height = 0;
+    for (int u = 1; u < b.num_frames; ++u) {
+      const float* f = b.frame(k, u);
+      const float* f0 = b.frame(k, 0);
+      for (int v = 0; v < b.num_vertices; ++v) {
+        double d = 0;
+        for (int c = 0; c < 3; ++c) {
+          const double e = f[c * b.plane_stride + v] - f0[c * b.plane_stride + v];
+          d += e * e;
+        }
+        if (d > furthest) furthest = d, height = f[2 * b.plane_stride + v];
+      }
+    }
+    s.parameter_map.values[k] = height;
+  }
+  s.check();
+  return s;
+}
+
+// locomotion <-> jump_length (+ locomotion <-> turning when `with_turning`, + locomotion <->
+// reach when `with_reach`), self-loops on.
+inline MotionGraph make_test_graph(bool with_turning = false, double fps = 25,
+                                   bool with_reach = false) {
   std::vector<MotionSpace> spaces{make_test_space(walk_recipe()), make_test_space(jump_recipe())};
   std::vector<TransitionConfig> transitions{{"locomotion", "jump_length"},
                                             {"jump_length", "locomotion"}};
@@ -166,6 +208,11 @@ inline MotionGraph make_test_graph(bool with_turning = false, double fps = 25) {
     spaces.push_back(make_test_space(turn_recipe()));
     transitions.push_back({"locomotion", "turning"});
     transitions.push_back({"turning", "locomotion"});
+  }
+  if (with_reach) {
+    spaces.push_back(make_reach_space());
+    transitions.push_back({"locomotion", "reach"});
+    transitions.push_back({"reach", "locomotion"});
   }
   graph::GraphOptions options;
   options.precomputed.parameter_samples = 5;

@@ -345,6 +345,35 @@ TEST(RuntimeCharacter, ClampsAndReportsParametersAndRoutesRequestsWithoutAnEdge)
   EXPECT_NEAR(c.state().p, 30.0, 1e-9);
 }
 
+TEST(RuntimeCharacter, RefusesARequestWithoutRouteAndKeepsPlaying) {
+  // Only jump_length -> locomotion: nothing leads from locomotion to the jump.
+  graph::GraphOptions options;
+  options.precomputed.parameter_samples = 5;
+  const std::vector<TransitionConfig> one_way{{"jump_length", "locomotion"}};
+  const MotionGraph g = graph::build_motion_graph(
+      "one-way", 25,
+      {test::make_test_space(test::walk_recipe()), test::make_test_space(test::jump_recipe())},
+      one_way, options, nullptr);
+  const int loco = g.find_space("locomotion"), jump = g.find_space("jump_length");
+  Character c(g, TransitionOptions{});
+  c.reset(loco, 1.2);
+  c.step(0.1);
+  const double t = c.state().t;
+  const RequestStatus s = c.request_motion(jump, 1.0);
+  EXPECT_EQ(s.result, RequestResult::kNoRoute);
+  EXPECT_EQ(s.hops, 0);
+  int searches = 0;
+  for (int k = 0; k < 100; ++k) {
+    c.step(0.02);
+    searches += c.events().searches;
+    ASSERT_EQ(c.state().space, loco);
+    ASSERT_EQ(c.state().phase, PlayPhase::kFree);
+  }
+  EXPECT_EQ(searches, 0);
+  EXPECT_NE(c.state().t, t);  // still walking
+  EXPECT_NEAR(c.state().p, 1.2, 1e-9);
+}
+
 TEST(RuntimeCharacter, OneShotMotionReturnsToTheCyclicSpace) {
   const MotionGraph& g = graph();
   const int loco = g.find_space("locomotion"), jump = g.find_space("jump_length");
@@ -391,7 +420,7 @@ TEST(RuntimeController, FollowsAStraightPathWithASpeedChange) {
   const FollowStatus s = follow(graph(), path, 60, 30, 1.1, &p);
   EXPECT_TRUE(s.done);
   EXPECT_LE(s.max_abs_error, 0.25);
-  EXPECT_NEAR(s.travelled, path.length(), 0.02 * path.length());
+  EXPECT_NEAR(s.travelled, s.s - s.s_start, 0.02 * (s.s - s.s_start));
   EXPECT_NEAR(p, 1.5, 1e-6);  // the speed changed
 }
 
@@ -424,8 +453,89 @@ TEST(RuntimeController, FollowsAStraightPathOnTheTinySampleAsset) {
   const FollowStatus s = follow(asset.graph, path, 30, 30, 1.1, &p);
   EXPECT_TRUE(s.done);
   EXPECT_LE(s.max_abs_error, 0.25);
-  EXPECT_NEAR(s.travelled, path.length(), 0.02 * path.length());
+  EXPECT_NEAR(s.travelled, s.s - s.s_start, 0.02 * (s.s - s.s_start));
   EXPECT_NEAR(p, 1.5, 1e-6);
+}
+
+// A straight path at 1.2 m/s with a gap of 0.9 m whose middle lies at `gap_middle`.
+GroundPath gap_path(double gap_middle) {
+  auto line = [](double a, double b, double speed, bool gap) {
+    BezierCurve c{
+        {Point2{a, 0}, Point2{a + (b - a) / 3, 0}, Point2{a + 2 * (b - a) / 3, 0}, Point2{b, 0}},
+        speed};
+    c.gap = gap;
+    return c;
+  };
+  const double a = gap_middle - 0.45, b = gap_middle + 0.45;
+  return GroundPath({line(0, a, 1.2, false), line(a, b, -1, true), line(b, b + 3, -1, false)});
+}
+
+TEST(RuntimeController, PlacesTheJumpOnTheGapWhereverTheGapIs) {
+  // The gap's middle at several places along one walk cycle (about 1.1 m here). Requesting the
+  // jump on the prediction step nearest to the gap left it up to half a cycle (~0.4-0.55 m)
+  // away; with the approach speed adjusted, what is left is at most half a step (~0.2 m).
+  for (const double middle : {4.0, 4.25, 4.5, 4.75, 5.0}) {
+    const GroundPath path = gap_path(middle);
+    const FollowStatus s = follow(graph(), path, 60, 30, 1.2);
+    EXPECT_TRUE(s.done) << middle;
+    EXPECT_EQ(s.jumps, 1) << middle;
+    EXPECT_LE(std::abs(s.max_abs_jump_offset), 0.25) << "gap middle at " << middle;
+    EXPECT_LE(s.max_abs_error, 0.25) << middle;
+  }
+}
+
+// The S-curve of sample_capture/play/s_curve.txt.
+GroundPath s_curve() {
+  return GroundPath(
+      {BezierCurve{{Point2{0, 0}, Point2{2, 0}, Point2{3, 1.5}, Point2{5, 1.5}}, 1.2},
+       BezierCurve{{Point2{5, 1.5}, Point2{7, 1.5}, Point2{8, 0}, Point2{10, 0}}, -1}});
+}
+
+TEST(RuntimeController, TakesCurvesInTheTurningSpace) {
+  const GroundPath path = s_curve();
+  const FollowStatus turning = follow(graph_with_turning(), path, 60, 30, 1.2);
+  const FollowStatus rotating = follow(graph(), path, 60, 30, 1.2);
+  for (const FollowStatus* s : {&turning, &rotating}) {
+    EXPECT_TRUE(s->done);
+    EXPECT_LE(s->max_abs_error, 0.25);
+    EXPECT_NEAR(s->travelled, s->s - s->s_start, 0.02 * (s->s - s->s_start));
+  }
+  EXPECT_GE(turning.turning_requests, 1);
+  EXPECT_EQ(rotating.turning_requests, 0);
+  // Without a turning space the root rotation makes all the turning; with one, the body's own
+  // turning makes most of it.
+  EXPECT_GT(rotating.root_turn, 0.9 * rotating.total_turn);
+  EXPECT_LT(turning.root_turn, 0.5 * turning.total_turn);
+}
+
+TEST(RuntimeController, ReachPutsTheHandOnTheTarget) {
+  const MotionGraph g = test::make_test_graph(false, 25, true);
+  const GraphSpace& reach = g.spaces[g.find_space("reach")];
+  const double height = 0.5 * (reach.parameter_min() + reach.parameter_max());
+  for (const double x : {3.0, 3.35, 3.7, 4.05}) {
+    Character c(g, TransitionOptions{});
+    Controller control(c);
+    ASSERT_TRUE(control.has_reach());
+    c.reset(g.find_space("locomotion"), 1.2);
+    const RequestStatus status = control.reach(x, 0.3, height);
+    EXPECT_FALSE(status.clamped);
+    for (int k = 0; k < 60 * 20 && !control.reach_status().done; ++k) c.step(1 / 60.0);
+    // Sideways and in height the hand lands on the target; along the walk, within half a step
+    // of the prediction's staircase (the reach is entered from a few favoured phases only).
+    const ReachStatus& r = control.reach_status();
+    EXPECT_TRUE(r.done) << x;
+    EXPECT_NEAR(r.hand[1], 0.3, 0.05) << x;
+    EXPECT_NEAR(r.hand[2], height, 0.05) << x;
+    EXPECT_NEAR(r.hand[0], x, 0.35) << "target at x = " << x;
+  }
+  // Out of range: clamped and reported. Without a reach space: refused.
+  Character c(g, TransitionOptions{});
+  Controller control(c);
+  EXPECT_TRUE(control.reach(3, 0, 10).clamped);
+  Character plain(graph(), TransitionOptions{});
+  Controller no_reach(plain);
+  EXPECT_FALSE(no_reach.has_reach());
+  EXPECT_EQ(no_reach.reach(3, 0, 1).result, RequestResult::kUnknownSpace);
 }
 
 TEST(GroundPath, RejectsBrokenPaths) {

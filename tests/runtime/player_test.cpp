@@ -9,6 +9,8 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <tuple>
+#include <algorithm>
 
 #include "pipeline/core/error.h"
 #include "pipeline/core/files.h"
@@ -58,6 +60,7 @@ TEST(ControlScript, ParsesEveryCommand) {
       "at 3 turn -20\n"
       "at 3.5 walk 1.3 90\n"
       "at 4 jump 1.0\n"
+      "at 5 reach 6 -0.3 1.2\n"
       "path 0 0\n"
       "curve 1 0 2 0 3 0 speed 1.4\n"
       "curve 4 0 5 0 6 0 gap\n",
@@ -67,7 +70,10 @@ TEST(ControlScript, ParsesEveryCommand) {
   EXPECT_EQ(s.start_space, "locomotion");
   EXPECT_DOUBLE_EQ(s.start_p, 1.2);
   EXPECT_DOUBLE_EQ(s.start_t, 0.3);
-  ASSERT_EQ(s.events.size(), 5u);
+  ASSERT_EQ(s.events.size(), 6u);
+  EXPECT_EQ(s.events[5].command, ScriptCommand::kReach);
+  EXPECT_DOUBLE_EQ(s.events[5].b, -0.3);
+  EXPECT_DOUBLE_EQ(s.events[5].c, 1.2);
   EXPECT_EQ(s.events[0].command, ScriptCommand::kParam);  // sorted by time
   EXPECT_EQ(s.events[1].command, ScriptCommand::kMotion);
   EXPECT_EQ(s.events[1].space, "jump_length");
@@ -93,6 +99,9 @@ TEST(ControlScript, MalformedLinesNameTheLineAndTheReason) {
   EXPECT_NE(parse_error("at 1 param 1\n").find("no 'start"), std::string::npos);
   EXPECT_NE(parse_error("start locomotion\nat -1 param 1\n").find("s.txt:2:"), std::string::npos);
   EXPECT_NE(parse_error("start locomotion 1 2\n").find("s.txt:1: start time"), std::string::npos);
+  EXPECT_NE(parse_error("start locomotion\nat 1 reach 2 0\n")
+                .find("s.txt:2: 'reach' needs a target x y z"),
+            std::string::npos);
   EXPECT_EQ(parse_error("start locomotion\n"), "");
   // An unknown space is caught against the asset, with its line.
   const ControlScript s = parse_control_script("start locomotion\nat 1 motion swim 1\n", "s.txt");
@@ -209,6 +218,27 @@ TEST(PlayerExecutable, RefusesBadInputWithAClearMessage) {
                      &out),
             kExitInput);
   EXPECT_NE(out.find("truncated.fourd"), std::string::npos) << out;
+  // A flipped bit, another format version, the other byte order: refused, named, exit 4.
+  std::string flipped = bytes;
+  flipped[bytes.size() / 3] ^= 0x10;
+  std::string old_version = bytes;
+  old_version[8] = static_cast<char>(old_version[8] - 1);
+  std::string swapped = bytes;
+  std::reverse(swapped.begin() + 12, swapped.begin() + 16);
+  for (const auto& [name, content, reason] :
+       {std::tuple<std::string, std::string, std::string>{"flipped", flipped, "checksum"},
+        {"old_version", old_version, "not supported"},
+        {"swapped", swapped, "endianness"}}) {
+    write_file_atomic(d / (name + ".fourd"), content);
+    EXPECT_EQ(run_play((d / (name + ".fourd")).string() + " " + (d / "good.txt").string() +
+                           " -o " + (d / name).string(),
+                       &out),
+              kExitInput)
+        << out;
+    EXPECT_NE(out.find(name + ".fourd"), std::string::npos) << out;
+    EXPECT_NE(out.find(reason), std::string::npos) << out;
+    EXPECT_FALSE(fs::exists(d / name / "frames.csv"));
+  }
   // Not an asset at all.
   write_file_atomic(d / "junk.fourd", "hello");
   EXPECT_NE(run_play((d / "junk.fourd").string() + " " + (d / "good.txt").string() + " -o " +

@@ -1,4 +1,4 @@
-#include "stages/motionspace/figure.h"
+#include "stages/common/figure.h"
 
 #include <fmt/format.h>
 
@@ -64,8 +64,8 @@ void draw_panel(const FigurePanel& panel, std::span<const Tri> triangles, const 
     cv::Vec3d color(0, 0, 0);
     for (int k = 0; k < 3; ++k) color += cv::Vec3d(panel.colors[t[k]]) / 3.0;
     const cv::Point pts[3] = {screen[t[0]], screen[t[1]], screen[t[2]]};
-    cv::fillConvexPoly(canvas, pts, 3, cv::Scalar(color[0] * shade, color[1] * shade,
-                                                  color[2] * shade),
+    cv::fillConvexPoly(canvas, pts, 3,
+                       cv::Scalar(color[0] * shade, color[1] * shade, color[2] * shade),
                        cv::LINE_8);
   }
 }
@@ -95,17 +95,26 @@ cv::Mat render_figure(std::span<const FigurePanel> panels, std::span<const Tri> 
   // One scale for every panel: the largest extent of any mesh in the view.
   const View view;
   Eigen::Vector2d extent(0, 0);
+  double floor = 1e300;  // lowest screen height of all panels
   std::vector<Eigen::Vector2d> lows, widths;
   for (const FigurePanel& p : panels) {
     Eigen::Vector2d lo(1e300, 1e300), hi(-1e300, -1e300);
+    if (p.positions.cols() == 0) lo = hi = Eigen::Vector2d::Zero();
     for (Eigen::Index v = 0; v < p.positions.cols(); ++v) {
       const Eigen::Vector2d s(p.positions.col(v).dot(view.right), p.positions.col(v).dot(view.up));
       lo = lo.cwiseMin(s);
       hi = hi.cwiseMax(s);
     }
     extent = extent.cwiseMax(hi - lo);
+    if (p.positions.cols() > 0) floor = std::min(floor, lo.y());
     lows.push_back(lo);
     widths.push_back(hi - lo);
+  }
+  if (layout.common_floor) {
+    // Every panel's height range starts at the common floor.
+    for (std::size_t i = 0; i < lows.size(); ++i) {
+      extent.y() = std::max(extent.y(), lows[i].y() + widths[i].y() - floor);
+    }
   }
   const double margin = 0.06;
   const double scale = kSupersample * std::min(pw / (extent.x() * (1 + 2 * margin)),
@@ -114,10 +123,12 @@ cv::Mat render_figure(std::span<const FigurePanel> panels, std::span<const Tri> 
     for (int c = 0; c < cols; ++c) {
       const std::size_t i = static_cast<std::size_t>(r) * cols + c;
       if (i >= panels.size()) break;
+      if (panels[i].positions.cols() == 0) continue;
       cv::Mat big(ph * kSupersample, pw * kSupersample, CV_8UC3, cv::Scalar(255, 255, 255));
       // Centre horizontally, stand on a common floor line.
       Eigen::Vector2d lo = lows[i];
       lo.x() -= 0.5 * (big.cols / scale - widths[i].x());
+      if (layout.common_floor) lo.y() = floor;
       lo.y() -= margin * extent.y();
       draw_panel(panels[i], triangles, view, lo, scale, big);
       cv::Mat small;
@@ -129,8 +140,8 @@ cv::Mat render_figure(std::span<const FigurePanel> panels, std::span<const Tri> 
   const cv::Scalar ink(30, 30, 30);
   cv::putText(image, layout.title, cv::Point(8, 22), font, 0.6, ink, 1, cv::LINE_AA);
   for (int c = 0; c < cols; ++c) {
-    cv::putText(image, layout.column_labels[c], cv::Point(kLabelWidth + c * pw + 10, 48), font,
-                0.5, ink, 1, cv::LINE_AA);
+    cv::putText(image, layout.column_labels[c], cv::Point(kLabelWidth + c * pw + 10, 48), font, 0.5,
+                ink, 1, cv::LINE_AA);
   }
   for (int r = 0; r < rows; ++r) {
     cv::putText(image, layout.row_labels[r], cv::Point(6, kHeaderHeight + r * ph + ph / 2), font,

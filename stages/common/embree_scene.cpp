@@ -1,0 +1,48 @@
+#include "stages/common/embree_scene.h"
+
+#include <cstring>
+
+#include "pipeline/core/error.h"
+
+namespace fourd {
+
+RTCDevice embree_device() {
+  static RTCDevice device = [] {
+    RTCDevice d = rtcNewDevice(nullptr);
+    if (!d) throw Error("cannot create the Embree device");
+    return d;
+  }();
+  return device;
+}
+
+RTCScene make_embree_scene(const std::vector<Vec3f>& positions, const std::vector<Tri>& triangles,
+                           RTCBuildQuality quality) {
+  RTCDevice device = embree_device();
+  RTCScene scene = rtcNewScene(device);
+  rtcSetSceneBuildQuality(scene, quality);
+  if (!triangles.empty()) {
+    RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(
+        geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), positions.size()));
+    auto* ib = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
+        geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), triangles.size()));
+    if (!vb || !ib) {
+      rtcReleaseGeometry(geom);
+      rtcReleaseScene(scene);
+      throw Error("Embree could not allocate mesh buffers");
+    }
+    for (std::size_t i = 0; i < positions.size(); ++i) {
+      std::memcpy(vb + 3 * i, positions[i].data(), 3 * sizeof(float));
+    }
+    for (std::size_t f = 0; f < triangles.size(); ++f) {
+      for (int k = 0; k < 3; ++k) ib[3 * f + k] = static_cast<unsigned>(triangles[f][k]);
+    }
+    rtcCommitGeometry(geom);
+    rtcAttachGeometry(scene, geom);
+    rtcReleaseGeometry(geom);
+  }
+  rtcCommitScene(scene);
+  return scene;
+}
+
+}  // namespace fourd

@@ -1,0 +1,191 @@
+// Validation of the texture stage (texture/ on pipeline meshes, texture_oracle/ on the
+// ground-truth meshes): each sampled frame's aligned mesh, textured with its baked texture, is
+// rendered into every studio camera and compared with the captured image over the pixels inside
+// the ground-truth silhouette (eroded by one pixel: the outline mixes in the backdrop) that the
+// render covers. texture.<input>.psnr_db pools the squared error of all those pixels.
+#include <fmt/format.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+
+#include "pipeline/core/capture.h"
+#include "pipeline/core/colmap_model.h"
+#include "pipeline/core/error.h"
+#include "pipeline/core/image_io.h"
+#include "pipeline/core/mesh_io.h"
+#include "stages/texture/render.h"
+#include "stages/texture/texture_io.h"
+#include "stages/validate/sampling.h"
+#include "stages/validate/validate.h"
+
+namespace fourd::validate {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using texture::ImageError;
+
+struct CameraResult {
+  ImageError error;
+  std::int64_t silhouette = 0;  // pixels inside the eroded ground-truth silhouette
+  std::int64_t compared = 0;    // ... that the render covers
+  cv::Mat picture;              // captured | rendered | difference (sampled frames only)
+};
+
+// Renders one frame into every camera and compares.
+std::vector<CameraResult> compare_frame(const Session& session, const Mesh& textured,
+                                        const cv::Mat& texture_image,
+                                        const std::vector<Camera>& cameras, const std::string& take,
+                                        int frame, bool pictures) {
+  const texture::TexturedRenderer renderer(textured, texture_image);
+  std::vector<CameraResult> results(cameras.size());
+  tbb::parallel_for(std::size_t{0}, cameras.size(), [&](std::size_t c) {
+    const Camera& camera = cameras[c];
+    const cv::Mat captured = read_capture_image(session, camera, take, frame);
+    const fs::path silhouette_file = session.ground_truth_dir() / "silhouettes" / take /
+                                     camera.name / (frame_name(frame) + ".png");
+    cv::Mat silhouette = read_image(silhouette_file, cv::IMREAD_GRAYSCALE);
+    cv::erode(silhouette > 127, silhouette, cv::Mat());
+    const texture::TexturedView view = renderer.render(camera);
+    const cv::Mat mask = silhouette & view.mask;
+    CameraResult& r = results[c];
+    r.error = texture::image_error(view.image, captured, mask);
+    r.silhouette = cv::countNonZero(silhouette);
+    r.compared = cv::countNonZero(mask);
+    if (pictures) {
+      cv::Mat rendered, diff;
+      view.image.convertTo(rendered, CV_8UC3, 255.0);
+      cv::absdiff(rendered, captured, diff);
+      diff.setTo(cv::Scalar::all(0), ~mask);
+      diff.convertTo(diff, CV_8UC3, 4.0);
+      r.picture = captured.clone();
+      cv::hconcat(std::vector<cv::Mat>{r.picture, rendered, diff}, r.picture);
+    }
+  });
+  return results;
+}
+
+}  // namespace
+
+StageReport validate_texture(const ValidationContext& ctx) {
+  StageReport report;
+  report.stage = "texture";
+  const std::vector<RunFolder> runs = run_folders(ctx.session, "texture", "report.json");
+  if (runs.empty() || !fs::exists(ctx.session.ground_truth_dir() / "silhouettes")) {
+    report.summary = "Skipped: no texture/ output, or no ground-truth silhouettes to compare with.";
+    return report;
+  }
+  report.present = true;
+  report.summary =
+      "Each sampled frame's aligned mesh with its baked texture, rendered (unlit) into every studio "
+      "camera and compared with the captured image inside the ground-truth silhouette (eroded by "
+      "one pixel) where the render covers it; PSNR pools the squared error of all those pixels. "
+      "The studio lights the performer, so the textures carry its shading: the render reproduces "
+      "the capture without lighting it again.";
+  const std::vector<Camera> cameras = read_colmap_model(ctx.session.calibration_dir());
+  std::string table =
+      "| input | take | frames | PSNR [dB] | worst image [dB] | silhouette covered |\n"
+      "|---|---|---|---|---|---|\n";
+  for (const RunFolder& run : runs) {
+    const json stage_report = read_json(run.dir / "report.json");
+    const fs::path input = ctx.session.root() / stage_report.at("input").get<std::string>();
+    const std::string extension = stage_report.at("extension").get<std::string>();
+    Mesh textured = read_ply(run.dir / "atlas.ply");
+    if (textured.uv_triangles.empty()) {
+      throw InputError(fmt::format("{}: no per-corner texture coordinates", (run.dir / "atlas.ply").string()));
+    }
+    ImageError total;
+    std::int64_t silhouette = 0, compared = 0;
+    double worst = std::numeric_limits<double>::infinity();
+    std::vector<std::string> takes;
+    for (const auto& [take, frames] : stage_report.at("takes").items()) takes.push_back(take);
+    for (std::size_t k = 0; k < takes.size(); ++k) {
+      const std::string& take = takes[k];
+      const int n = static_cast<int>(stage_report.at("takes").at(take).size());
+      const std::vector<int> frames = sample_frames(n, ctx.options.frames_per_take);
+      ImageError take_error;
+      std::int64_t take_silhouette = 0, take_compared = 0;
+      for (int frame : frames) {
+        const Mesh aligned = read_ply(input / take / (frame_name(frame) + ".ply"));
+        if (aligned.num_vertices() != textured.num_vertices()) {
+          throw InputError(fmt::format("{}: {} vertices, the atlas has {}", take,
+                                       aligned.num_vertices(), textured.num_vertices()));
+        }
+        textured.positions = aligned.positions;
+        const cv::Mat image = texture::read_texture(run.dir / take / (frame_name(frame) + extension));
+        const bool picture = k == 0 && frame == frames[frames.size() / 2];
+        const auto results = compare_frame(ctx.session, textured, image, cameras, take, frame, picture);
+        std::vector<cv::Mat> rows;
+        for (std::size_t c = 0; c < results.size(); ++c) {
+          const CameraResult& r = results[c];
+          take_error.add(r.error);
+          take_silhouette += r.silhouette;
+          take_compared += r.compared;
+          if (r.error.values > 0) worst = std::min(worst, r.error.psnr_db());
+          // Cameras spread evenly around the rig.
+          const std::size_t step = std::max<std::size_t>(1, cameras.size() / ctx.options.picture_cameras);
+          if (!r.picture.empty() && c % step == 0 && rows.size() < std::size_t(ctx.options.picture_cameras)) {
+            rows.push_back(panel(r.picture, std::min(3 * ctx.options.panel_width, r.picture.cols),
+                                 cv::INTER_AREA,
+                                 fmt::format("{} {}: captured | textured render | |difference| x4",
+                                             cameras[c].name, frame_name(frame))));
+          }
+        }
+        if (!rows.empty()) {
+          cv::Mat picture;
+          cv::vconcat(rows, picture);
+          Picture p;
+          p.file = fmt::format("texture_{}.png", run.label);
+          p.caption = fmt::format("Texture ({} meshes), take {} frame {}: captured image, the aligned "
+                                  "mesh rendered with its baked texture, and their difference "
+                                  "(x4) inside the silhouette.",
+                                  run.label, take, frame);
+          write_image_atomic(ctx.reports_dir / p.file, picture);
+          report.pictures.push_back(p);
+          cv::Mat map;
+          image.convertTo(map, CV_8UC3, 255.0);
+          Picture m;
+          m.file = fmt::format("texture_{}_map.png", run.label);
+          m.caption = fmt::format("The baked texture of that frame ({} meshes) in the template's atlas.",
+                                  run.label);
+          write_image_atomic(ctx.reports_dir / m.file,
+                             panel(map, std::min(ctx.options.panel_width, map.cols), cv::INTER_AREA,
+                                   fmt::format("{} {}", take, frame_name(frame))));
+          report.pictures.push_back(m);
+        }
+      }
+      total.add(take_error);
+      silhouette += take_silhouette;
+      compared += take_compared;
+      table += fmt::format("| {} | {} | {} | {:.2f} | | {:.1f} % |\n", run.label, take, frames.size(),
+                           take_error.psnr_db(),
+                           100.0 * take_compared / std::max<std::int64_t>(1, take_silhouette));
+    }
+    table += fmt::format("| {} | all | | **{:.2f}** | {:.2f} | {:.1f} % |\n", run.label,
+                         total.psnr_db(), worst, 100.0 * compared / std::max<std::int64_t>(1, silhouette));
+    const json atlas = read_json(run.dir / "atlas.json");
+    report.metrics.push_back({"psnr_db", total.psnr_db(), run.input,
+                              "textured mesh rendered into the studio cameras vs the captured "
+                              "images, inside the silhouette [dB]"});
+    report.metrics.push_back({"psnr_worst_image_db", worst, run.input,
+                              "the worst single camera image of the sampled frames [dB]"});
+    report.metrics.push_back({"silhouette_covered", double(compared) / std::max<std::int64_t>(1, silhouette),
+                              run.input, "fraction of silhouette pixels the textured mesh covers"});
+    report.metrics.push_back({"unseen_texels_pct", 100.0 * stage_report.at("unseen_fraction_mean").get<double>(),
+                              run.input, "texels no camera saw (filled), mean over frames [%]"});
+    report.metrics.push_back({"seam_rms_levels", stage_report.at("seam_rms_after").get<double>(), run.input,
+                              "colour difference across chart seams after levelling [8-bit levels]"});
+    report.metrics.push_back({"seconds_per_frame", stage_report.at("seconds_per_frame").get<double>(),
+                              run.input, "texture stage time per frame (bake + write) [s]"});
+    report.metrics.push_back({"atlas_stretch_l2", atlas.at("stretch_l2").get<double>(), run.input,
+                              "area-weighted L2 stretch of the atlas (1: none)"});
+    report.metrics.push_back({"atlas_charts", atlas.at("charts").get<double>(), run.input,
+                              "charts in the atlas"});
+  }
+  report.details = table;
+  return report;
+}
+
+}  // namespace fourd::validate

@@ -1,0 +1,112 @@
+#!/usr/bin/env bash
+# Crash safety: kills each stage with SIGKILL at random points of its run and checks that
+#  (1) right after the kill, every stage output file is either absent or byte-identical to the
+#      uninterrupted run's (a stage never leaves a partial file under its real name; temp files
+#      of the atomic writers, .<name>.tmp<pid>-<n>, are allowed and listed);
+#  (2) rerunning the driver completes the stage, and a further `fourd run` has nothing to do;
+#  (3) the session ends identical to the uninterrupted run (SHA-256 of every output file).
+# The driver (`fourd run --only STAGE --force`, which also runs the stage's oracle variant) and
+# the stage run in their own process group; the whole group is killed, as a power cut would.
+#
+# usage: kill_rerun.sh REFERENCE WORK KILLS_PER_STAGE [SEED] [STAGE...]
+#   REFERENCE  a session the whole pipeline ran through, uninterrupted (e.g. the e2e test's);
+#              it is not modified
+#   WORK       scratch folder (replaced)
+#   FOURD_BIN  folder of the fourd executables
+# Kill times are uniform in [2 %, 98 %] of the stage's duration in REFERENCE's completion
+# record; SEED (default 1) makes them repeatable. Prints one line per kill and a summary.
+set -euo pipefail
+ref="$(cd "$1" && pwd)"
+work="$2"
+kills="$3"
+seed="${4:-1}"
+shift $(( $# < 4 ? $# : 4 ))
+bin="${FOURD_BIN:?FOURD_BIN must name the folder of the fourd executables}"
+stages=("$@")
+if [ ${#stages[@]} -eq 0 ]; then
+  stages=(synth segment reconstruct align timewarp motionspace texture graph validate)
+fi
+
+# The stage outputs the manifest covers: every folder a stage writes (DESIGN.md), without the
+# logs, the completion records (they hold times) and the e2e test's own extra folders.
+manifest() {
+  ( cd "$1" && find . -path ./logs -prune -o -path './play_*' -prune -o -path ./again -prune \
+      -o -type f ! -name .fourd_stage.json ! -name '*.sha' ! -name session.yaml -print \
+      | LC_ALL=C sort | xargs -r -d '\n' sha256sum )
+}
+
+rm -rf "$work"
+mkdir -p "$work"
+manifest "$ref" > "$work/reference.sha"
+echo "reference: $(wc -l < "$work/reference.sha") files"
+session="$work/session"
+cp -a "$ref" "$session"
+RANDOM=$seed
+failures=0
+total_kills=0
+start_all=$SECONDS
+for stage in "${stages[@]}"; do
+  # The completion record lives in the stage's first output folder; its oracle variant's in
+  # <folder>_oracle. The stage's run time is the sum of both.
+  case "$stage" in synth) out=capture ;; validate) out=reports ;; *) out="$stage" ;; esac
+  [ -f "$ref/$out/.fourd_stage.json" ] || { echo "$stage: not in the reference session, skipped"; continue; }
+  seconds=$(python3 -c "
+import json, os, sys
+print(sum(json.load(open(f))['seconds'] for f in sys.argv[1:] if os.path.exists(f)))" \
+    "$ref/$out/.fourd_stage.json" "$ref/${out}_oracle/.fourd_stage.json")
+  stage_start=$SECONDS
+  for ((k = 1; k <= kills; ++k)); do
+    total_kills=$((total_kills + 1))
+    # Uniform in [2 %, 98 %] of the reference duration (RANDOM: 0..32767).
+    at=$(python3 -c "import sys; print(f'{float(sys.argv[1]) * (0.02 + 0.96 * int(sys.argv[2]) / 32767):.2f}')" \
+         "$seconds" "$RANDOM")
+    setsid "$bin/fourd" run "$session" --only "$stage" --force > "$work/killed.log" 2>&1 &
+    pid=$!
+    sleep "$at"
+    if kill -0 "$pid" 2> /dev/null; then
+      kill -KILL -- "-$pid" 2> /dev/null || true
+      state="killed at ${at}s"
+    else
+      state="finished before ${at}s"
+    fi
+    wait "$pid" 2> /dev/null || true
+    # (1) no partial file under a real name.
+    manifest "$session" > "$work/after_kill.sha"
+    temps=$(grep -cE '/\.[^/]*\.tmp[0-9]+-[0-9]+[^/]*$' "$work/after_kill.sha" || true)
+    bad=$(grep -vE '/\.[^/]*\.tmp[0-9]+-[0-9]+[^/]*$' "$work/after_kill.sha" \
+          | grep -vxFf "$work/reference.sha" || true)
+    ok=1
+    if [ -n "$bad" ]; then
+      echo "FAIL $stage kill $k ($state): files differ from the uninterrupted run right after the kill:"
+      echo "$bad" | head -5
+      ok=0
+    fi
+    # (2) the driver completes the stage; (3) then nothing is left to do and outputs match.
+    if ! "$bin/fourd" run "$session" --only "$stage" > "$work/rerun.log" 2>&1; then
+      echo "FAIL $stage kill $k ($state): the rerun failed:"; tail -5 "$work/rerun.log"; ok=0
+    fi
+    out=$("$bin/fourd" run "$session" 2>&1 || true)
+    if ! grep -q "ran 0 stage(s)" <<< "$out"; then
+      echo "FAIL $stage kill $k ($state): after the rerun the driver still ran stages:"
+      echo "$out" | tail -5
+      ok=0
+    fi
+    manifest "$session" > "$work/after_rerun.sha"
+    if ! diff -q "$work/reference.sha" "$work/after_rerun.sha" > /dev/null; then
+      echo "FAIL $stage kill $k ($state): the session differs from the uninterrupted run:"
+      diff "$work/reference.sha" "$work/after_rerun.sha" | head -8
+      ok=0
+      # Start the next kill from the reference again.
+      rm -rf "$session"
+      cp -a "$ref" "$session"
+    fi
+    if [ $ok = 1 ]; then
+      echo "ok   $stage kill $k: $state (of ${seconds}s), $temps temp file(s) left by the kill, rerun identical"
+    else
+      failures=$((failures + 1))
+    fi
+  done
+  echo "== $stage: $kills kill(s) in $((SECONDS - stage_start)) s"
+done
+echo "kill_rerun: $total_kills kill(s), $failures failure(s), $((SECONDS - start_all)) s"
+[ "$failures" -eq 0 ]

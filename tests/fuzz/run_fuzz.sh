@@ -1,0 +1,62 @@
+#!/usr/bin/env bash
+# Builds the libFuzzer targets (CMake preset "fuzz": clang, ASan + UBSan, in build-fuzz/) and
+# runs each for a bounded time on its seed corpus. Fails on a crash, a sanitizer report, a leak,
+# a timeout (one input taking more than 10 s), running out of memory (2 GB), or an exception
+# other than the typed errors of pipeline/core/error.h. A failing input is saved as
+# build-fuzz/artifacts/<target>/crash-* (or leak-, timeout-, oom-): reproduce it with
+#   build-fuzz/bin/fuzz_<target> build-fuzz/artifacts/<target>/crash-...
+# and, once fixed, commit it under tests/fuzz/regressions/<target>/ (fourd_tests then checks
+# that it is refused with a typed error).
+#
+# usage: run_fuzz.sh [SECONDS_PER_TARGET (default 60)] [TARGET...]   (default: every target)
+# Prints, per target, the executions and their rate; new inputs the fuzzer finds are kept in
+# build-fuzz/corpus/<target>/ (not in the repository).
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+seconds="${1:-60}"
+shift || true
+export CCACHE_DIR="${CCACHE_DIR:-$HOME/.cache/fourd-ccache}"
+cmake --preset fuzz > build-fuzz.cmake.log 2>&1 || { cat build-fuzz.cmake.log; exit 1; }
+ninja -C build-fuzz -j"$(nproc)" fourd_fuzz_targets
+targets=("$@")
+if [ ${#targets[@]} -eq 0 ]; then
+  for d in tests/fuzz/corpus/*/; do targets+=("$(basename "$d")"); done
+fi
+failed=()
+summary=""
+start=$SECONDS
+for t in "${targets[@]}"; do
+  exe="build-fuzz/bin/fuzz_$t"
+  [ -x "$exe" ] || { echo "no fuzz target $t"; exit 2; }
+  corpus="build-fuzz/corpus/$t"
+  artifacts="build-fuzz/artifacts/$t/"
+  mkdir -p "$corpus" "$artifacts"
+  log="build-fuzz/fuzz_$t.log"
+  echo "== fuzz_$t: ${seconds} s"
+  set +e
+  ASAN_OPTIONS=detect_leaks=1:allocator_may_return_null=1 \
+  UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+    "$exe" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -malloc_limit_mb=2048 \
+      -print_final_stats=1 -close_fd_mask=1 -artifact_prefix="$artifacts" \
+      "$corpus" "tests/fuzz/corpus/$t" > "$log" 2>&1
+  code=$?
+  set -e
+  runs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
+  rate=$(sed -n 's/^stat::average_exec_per_sec: *//p' "$log" | tail -1)
+  cov=$(grep -oE 'cov: [0-9]+' "$log" | tail -1 | sed 's/cov: //')
+  line=$(printf '%-16s %10s execs %8s /s  cov %6s  exit %d' "$t" "${runs:-?}" "${rate:-?}" \
+         "${cov:-?}" "$code")
+  echo "$line"
+  summary+="$line"$'\n'
+  if [ "$code" -ne 0 ]; then
+    failed+=("$t")
+    grep -m1 -B2 -A30 -E "ERROR: (AddressSanitizer|LeakSanitizer|libFuzzer)|runtime error|terminate called|deadly signal" "$log" || tail -40 "$log"
+  fi
+done
+echo "== fuzzing summary ($((SECONDS - start)) s)"
+printf '%s' "$summary"
+if [ ${#failed[@]} -gt 0 ]; then
+  echo "fuzzing FAILED: ${failed[*]} (inputs in build-fuzz/artifacts/)"
+  exit 1
+fi
+echo "fuzzing ok: no crash, leak, timeout or untyped exception"
