@@ -103,8 +103,8 @@ const std::map<std::string, JobCost>& default_job_costs() {
   // stages after align were not measured: their requests are generous guesses to edit.
   static const std::map<std::string, JobCost> costs = {
       {"segment", {1, 256, 5}},    {"reconstruct", {1, 512, 10}}, {"align", {2, 256, 60}},
-      {"timewarp", {2, 2000, 30}}, {"motionspace", {2, 2000, 30}}, {"graph", {2, 2000, 30}},
-      {"validate", {2, 2000, 30}},
+      {"timewarp", {2, 2000, 30}}, {"motionspace", {2, 2000, 30}}, {"texture", {2, 2000, 30}},
+      {"graph", {2, 2000, 30}},    {"validate", {2, 2000, 30}},
   };
   return costs;
 }
