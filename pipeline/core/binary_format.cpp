@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <limits>
 
 #include "pipeline/core/error.h"
 #include "pipeline/core/files.h"
@@ -142,8 +143,11 @@ void BinaryReader::check_matrix_shape(std::uint64_t rows, std::uint64_t cols, in
     throw InputError(fmt::format("{}: matrix of {} x {} where {} x {} was expected", name, rows,
                                  cols, fixed_rows, fixed_cols));
   }
+  // Each dimension must fit Eigen::Index even when the other is 0 (a 0 x 2^63 matrix holds no
+  // bytes but is not a size Eigen accepts).
+  const std::uint64_t max_dimension = std::numeric_limits<Eigen::Index>::max();
   const std::uint64_t max_elements = remaining() / scalar_size;
-  if (rows != 0 && cols > max_elements / rows) {
+  if (rows > max_dimension || cols > max_dimension || (rows != 0 && cols > max_elements / rows)) {
     throw InputError(fmt::format(
         "{}: truncated: matrix of {} x {} at payload offset {} exceeds the {} bytes left", name,
         rows, cols, offset_ - sizeof(Header), remaining()));

@@ -198,8 +198,9 @@ TEST_F(JobsSession, WorkflowHasOneRuleAndLogPerJobWithItsFramesAsOutputs) {
     GTEST_SKIP() << "snakemake is not installed";
   }
   const fs::path out = dir_ / "dry_run.txt";
-  int status = std::system(fmt::format("snakemake -s '{}' --cores 1 -n --quiet > '{}' 2>&1",
-                                       files.snakefile.string(), out.string())
+  // Run from the test's folder: Snakemake writes its own log (.snakemake/) where it starts.
+  int status = std::system(fmt::format("cd '{}' && snakemake -s '{}' --cores 1 -n --quiet > '{}' 2>&1",
+                                       dir_.string(), files.snakefile.string(), out.string())
                                .c_str());
   ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << read_file(out);
   const std::string plan = read_file(out);
@@ -207,8 +208,8 @@ TEST_F(JobsSession, WorkflowHasOneRuleAndLogPerJobWithItsFramesAsOutputs) {
   EXPECT_NE(plan.find("total"), std::string::npos) << plan;
 
   // Run it: the fake stages write their outputs, the markers appear.
-  status = std::system(fmt::format("snakemake -s '{}' --cores 1 --quiet > '{}' 2>&1",
-                                   files.snakefile.string(), out.string())
+  status = std::system(fmt::format("cd '{}' && snakemake -s '{}' --cores 1 --quiet > '{}' 2>&1",
+                                   dir_.string(), files.snakefile.string(), out.string())
                            .c_str());
   // The fake seg writes no frame files, so Snakemake must report the missing outputs.
   EXPECT_FALSE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << read_file(out);

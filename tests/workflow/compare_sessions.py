@@ -12,8 +12,9 @@ import re
 import sys
 
 SKIP_DIRS = {"workflow", ".snakemake", "logs", "capture", "ground_truth", "calibration"}
-# Metrics that measure time (seconds per frame, wall time) rather than results.
-TIMING = re.compile(r"(^|[._])(wall_)?seconds|_seconds_|seconds_per_frame")
+# Metrics that measure time (seconds per frame, wall time, CPU seconds of a transition search,
+# a cost ratio of two timings) rather than results.
+TIMING = re.compile(r"(^|[._])(wall_)?seconds|_seconds_|seconds_per_frame|_cpu_s$|cost_ratio")
 
 
 def digests(root):

@@ -22,7 +22,7 @@ echo "== synth (shared by both runs)"
 cp -a "$work/base" "$work/local"
 cp -a "$work/base" "$work/snakemake"
 s="$work/snakemake"
-smk=(snakemake -s "$s/workflow/Snakefile" --show-failed-logs)
+smk=(snakemake -s "$s/workflow/Snakefile" -d "$s" --show-failed-logs)
 
 echo "== fourd run"
 start=$SECONDS

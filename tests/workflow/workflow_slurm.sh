@@ -53,7 +53,7 @@ PY
 echo "== the workflow through the Slurm profile"
 "$bin/fourd" workflow "$s" --frames-per-job "$fpj"
 start=$SECONDS
-snakemake -s "$s/workflow/Snakefile" --profile "$s/workflow/profiles/slurm" --quiet
+snakemake -s "$s/workflow/Snakefile" -d "$s" --profile "$s/workflow/profiles/slurm" --quiet
 echo "snakemake --profile slurm: $((SECONDS - start)) s"
 jobs=$(grep -c '^rule ' "$s/workflow/Snakefile")
 slurm_logs=$(find "$s/logs/slurm" -name '*.log' | wc -l)
