@@ -170,6 +170,15 @@ WarpedClass warp_class(const MotionClassConfig& motion, double fps, const Mesh& 
     warps[k] = register_take(takes[0], timing[0], takes[k], timing[k], options.warp());
   });
 
+  // Cycles are resampled on their steady roots (the per-step sway moves into the shapes); the
+  // registration above compared the torso-aligned shapes, which that sway does not disturb.
+  // A one-shot take's root is its real motion (a jump travels), kept as estimated.
+  if (motion.cyclic) {
+    tbb::parallel_for(std::size_t{0}, takes.size(), [&](std::size_t k) {
+      takes[k] = steady_cycle_root(std::move(takes[k]), timing[k]);
+    });
+  }
+
   int samples = options.samples;
   if (samples == 0) {
     double longest = 0;
