@@ -312,10 +312,16 @@ LocalTake steady_cycle_root(LocalTake take, const TakeTiming& timing) {
     return r;
   };
   // Mean motion per cycle; the sway, periodic, cancels in each root(x + period) root(x)^-1.
+  const std::vector<Root2>& raw = take.raw_roots.empty() ? take.roots : take.raw_roots;
+  auto raw_at = [&](double x) {
+    const int i = std::min(static_cast<int>(std::floor(x)), n - 2);
+    const double a = std::clamp(x - i, 0.0, 1.0);
+    return Root2((1 - a) * raw[i] + a * raw[i + 1]);
+  };
   Root2 w = Root2::Zero();
   int count = 0;
   for (int x = 0; x + period <= n - 1 + 1e-9; ++x, ++count) {
-    w += compose(centred(root_at(take, x + period)), inverse(centred(take.roots[x])));
+    w += compose(centred(raw_at(x + period)), inverse(centred(raw[x])));
   }
   if (count == 0) {
     throw InputError(fmt::format("take {}: its cycle ({:.2f} frames) is longer than the take",
@@ -355,6 +361,7 @@ LocalTake steady_cycle_root(LocalTake take, const TakeTiming& timing) {
     take.shapes[f] = apply_root(take.shapes[f], relative(steady, take.roots[f]));
     take.roots[f] = steady;
   }
+  take.raw_roots.clear();
   return take;
 }
 

@@ -27,6 +27,9 @@ struct LocalTake {
   std::string name;
   std::vector<Eigen::Matrix3Xd> shapes;  // #frames, 3 x #V each, root removed
   std::vector<Root2> roots;              // #frames, headings unwrapped
+  // The per-frame roots before smoothing (empty: as `roots`). A cycle's mean motion is taken
+  // from them: smoothing pins the take's ends, so its output is not periodic there.
+  std::vector<Root2> raw_roots;
   int num_frames() const { return static_cast<int>(shapes.size()); }
 };
 

@@ -105,7 +105,8 @@ LocalTake make_local_take(const std::string& name, std::vector<Eigen::Matrix3Xd>
                           const std::vector<double>& torso, int root_smoothing) {
   LocalTake take;
   take.name = name;
-  take.roots = estimate_roots(frames, template_positions, torso);
+  take.raw_roots = estimate_roots(frames, template_positions, torso);
+  take.roots = take.raw_roots;
   smooth_roots(&take.roots, root_smoothing);
   take.shapes.resize(frames.size());
   tbb::parallel_for(std::size_t{0}, frames.size(), [&](std::size_t f) {
