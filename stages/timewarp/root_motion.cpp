@@ -12,6 +12,14 @@ constexpr double kTorsoLow = 0.50;     // torso band, fraction of the body heigh
 constexpr double kTorsoHigh = 0.80;
 constexpr double kTorsoRadius = 0.12;  // horizontal distance from the axis, fraction of height
 
+// sin(x) / x, accurate near 0.
+double sinc(double x) { return std::abs(x) < 1e-4 ? 1 - x * x / 6 : std::sin(x) / x; }
+
+Eigen::Vector2d rotate(const Eigen::Vector2d& p, double angle) {
+  const double c = std::cos(angle), s = std::sin(angle);
+  return {c * p.x() - s * p.y(), s * p.x() + c * p.y()};
+}
+
 Eigen::Vector2d weighted_centroid_xy(const Eigen::Matrix3Xd& x, std::span<const double> w) {
   Eigen::Vector2d c = Eigen::Vector2d::Zero();
   for (Eigen::Index v = 0; v < x.cols(); ++v) c += w[v] * x.col(v).head<2>();
@@ -31,6 +39,16 @@ Root2 inverse(const Root2& a) {
 }
 
 Root2 relative(const Root2& a, const Root2& b) { return compose(inverse(a), b); }
+
+Root2 power(const Root2& a, double alpha) {
+  // A rigid motion of the plane is exp of a twist (v, w): heading w, translation V(w) v with
+  // V(w) = sinc(w / 2) R(w / 2). So power(a, alpha) turns by alpha w and translates by
+  // V(alpha w) alpha V(w)^-1 t.
+  const double w = a.z();
+  const double scale = alpha * sinc(alpha * w / 2) / sinc(w / 2);
+  const Eigen::Vector2d t = scale * rotate(a.head<2>(), (alpha - 1) * w / 2);
+  return {t.x(), t.y(), alpha * w};
+}
 
 double wrap_angle(double a) {
   const double two_pi = 2 * std::numbers::pi;
@@ -93,9 +111,7 @@ Root2 estimate_root(const Eigen::Matrix3Xd& frame, const Eigen::Matrix3Xd& templ
   const double heading = std::atan2(cross, dot);
   // The root sits where the template's torso centroid lands under the frame's rotation, so
   // that removing it moves the torso back over the template's.
-  const double c = std::cos(heading), s = std::sin(heading);
-  const Eigen::Vector2d rotated_ct(c * ct.x() - s * ct.y(), s * ct.x() + c * ct.y());
-  const Eigen::Vector2d t = cf - rotated_ct;
+  const Eigen::Vector2d t = cf - rotate(ct, heading);
   return {t.x(), t.y(), heading};
 }
 

@@ -25,6 +25,12 @@ using Root2 = Eigen::Vector3d;
 Root2 compose(const Root2& a, const Root2& b);
 Root2 inverse(const Root2& a);
 Root2 relative(const Root2& a, const Root2& b);
+// The fraction `alpha` of the rigid motion `a` along its screw (a rotation about a fixed
+// centre, or a translation): power(a, 0) is the identity, power(a, 1) == a and
+// power(a, s + t) == compose(power(a, s), power(a, t)). A body moving by power(a, t) from t = 0
+// to 1 turns at a constant rate along a circular arc (a straight line when a does not turn).
+// |heading| of `a` below 2 pi (less than a full turn).
+Root2 power(const Root2& a, double alpha);
 // Heading wrapped to (-pi, pi].
 double wrap_angle(double a);
 

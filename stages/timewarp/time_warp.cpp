@@ -300,6 +300,71 @@ Root2 root_at_phase(const LocalTake& take, const TakeTiming& timing, double u) {
   return r;
 }
 
+LocalTake steady_cycle_root(LocalTake take, const TakeTiming& timing) {
+  const int n = take.num_frames();
+  const double start = timing.start, period = timing.length;
+  // Roots about the take's mean position c, so that a heading error of W does not turn into a
+  // translation error the size of the distance from the world's origin.
+  Eigen::Vector2d c = Eigen::Vector2d::Zero();
+  for (const Root2& r : take.roots) c += r.head<2>() / n;
+  auto centred = [&](Root2 r) {
+    r.head<2>() -= c;
+    return r;
+  };
+  // Mean motion per cycle; the sway, periodic, cancels in each root(x + period) root(x)^-1.
+  const std::vector<Root2>& raw = take.raw_roots.empty() ? take.roots : take.raw_roots;
+  auto raw_at = [&](double x) {
+    const int i = std::min(static_cast<int>(std::floor(x)), n - 2);
+    const double a = std::clamp(x - i, 0.0, 1.0);
+    return Root2((1 - a) * raw[i] + a * raw[i + 1]);
+  };
+  Root2 w = Root2::Zero();
+  int count = 0;
+  for (int x = 0; x + period <= n - 1 + 1e-9; ++x, ++count) {
+    w += compose(centred(raw_at(x + period)), inverse(centred(raw[x])));
+  }
+  if (count == 0) {
+    throw InputError(fmt::format("take {}: its cycle ({:.2f} frames) is longer than the take",
+                                 take.name, period));
+  }
+  w /= count;
+  // The steady root at the cycle's start, s, from the means over the cycle (midpoint samples):
+  // heading(x_j) = s.heading + a_j w.heading, position(x_j) = R(a_j w.heading) s.position + t_j
+  // with (t_j, a_j w.heading) = power(w, a_j).
+  const int samples = std::max(8, static_cast<int>(std::ceil(8 * period)));
+  double heading = 0;
+  Eigen::Vector2d position = Eigen::Vector2d::Zero(), shift = Eigen::Vector2d::Zero();
+  double mean_cos = 0, mean_sin = 0;
+  for (int j = 0; j < samples; ++j) {
+    const double a = (j + 0.5) / samples;
+    const Root2 r = centred(root_at(take, start + a * period));
+    const Root2 step = power(w, a);
+    heading += (r.z() - step.z()) / samples;
+    position += r.head<2>() / samples;
+    shift += step.head<2>() / samples;
+    mean_cos += std::cos(step.z()) / samples;
+    mean_sin += std::sin(step.z()) / samples;
+  }
+  // Solve [mean_cos -mean_sin; mean_sin mean_cos] s.position = position - shift.
+  const Eigen::Vector2d rhs = position - shift;
+  const double det = mean_cos * mean_cos + mean_sin * mean_sin;
+  if (!(det > 1e-6)) {
+    throw InputError(fmt::format("take {}: turns {:.0f} degrees per cycle; a steady root needs less "
+                                 "than a full turn",
+                                 take.name, w.z() * 180 / std::numbers::pi));
+  }
+  const Root2 root_start((mean_cos * rhs.x() + mean_sin * rhs.y()) / det,
+                         (-mean_sin * rhs.x() + mean_cos * rhs.y()) / det, heading);
+  for (int f = 0; f < n; ++f) {
+    Root2 steady = compose(power(w, (f - start) / period), root_start);
+    steady.head<2>() += c;
+    take.shapes[f] = apply_root(take.shapes[f], relative(steady, take.roots[f]));
+    take.roots[f] = steady;
+  }
+  take.raw_roots.clear();
+  return take;
+}
+
 double Warp::at(double u) const {
   const int m = static_cast<int>(knots.size()) - 1;
   const double pos = std::clamp(u, 0.0, 1.0) * m;

@@ -27,6 +27,9 @@ struct LocalTake {
   std::string name;
   std::vector<Eigen::Matrix3Xd> shapes;  // #frames, 3 x #V each, root removed
   std::vector<Root2> roots;              // #frames, headings unwrapped
+  // The per-frame roots before smoothing (empty: as `roots`). A cycle's mean motion is taken
+  // from them: smoothing pins the take's ends, so its output is not periodic there.
+  std::vector<Root2> raw_roots;
   int num_frames() const { return static_cast<int>(shapes.size()); }
 };
 
@@ -73,6 +76,17 @@ TakeTiming cyclic_timing(const Cycle& cycle);
 // Shape (closure-corrected for cycles) and world root at phase u.
 Eigen::Matrix3Xd shape_at_phase(const LocalTake& take, const TakeTiming& timing, double u);
 Root2 root_at_phase(const LocalTake& take, const TakeTiming& timing, double u);
+
+// The steady root of a cyclic take: the body's trajectory without its per-step sway. The
+// per-frame roots (the torso's position and facing) weave from side to side and twist with
+// every step; a character that integrates them weaves too and covers more ground than it
+// advances. The steady root turns at a constant rate along a circular arc (or a straight
+// line): per cycle it moves by the take's mean motion W (root(x + period) root(x)^-1 averaged
+// over every frame x that has a frame one period later), and it runs through the middle of the
+// sway (over the cycle [start, start + period], its heading and position average to the
+// per-frame roots'). Returns the take re-rooted: these roots, and the shapes expressed
+// relative to them (the frames themselves unchanged), so the sway is kept in the body shape.
+LocalTake steady_cycle_root(LocalTake take, const TakeTiming& timing);
 
 // A monotone map from the reference's phase to a take's phase: the take's phase at reference
 // phase u in [0, 1] is offset + knots interpolated at u (knots from 0 to 1, M + 1 of them,

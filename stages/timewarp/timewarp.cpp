@@ -105,7 +105,8 @@ LocalTake make_local_take(const std::string& name, std::vector<Eigen::Matrix3Xd>
                           const std::vector<double>& torso, int root_smoothing) {
   LocalTake take;
   take.name = name;
-  take.roots = estimate_roots(frames, template_positions, torso);
+  take.raw_roots = estimate_roots(frames, template_positions, torso);
+  take.roots = take.raw_roots;
   smooth_roots(&take.roots, root_smoothing);
   take.shapes.resize(frames.size());
   tbb::parallel_for(std::size_t{0}, frames.size(), [&](std::size_t f) {
@@ -169,6 +170,15 @@ WarpedClass warp_class(const MotionClassConfig& motion, double fps, const Mesh& 
   tbb::parallel_for(std::size_t{1}, takes.size(), [&](std::size_t k) {
     warps[k] = register_take(takes[0], timing[0], takes[k], timing[k], options.warp());
   });
+
+  // Cycles are resampled on their steady roots (the per-step sway moves into the shapes); the
+  // registration above compared the torso-aligned shapes, which that sway does not disturb.
+  // A one-shot take's root is its real motion (a jump travels), kept as estimated.
+  if (motion.cyclic) {
+    tbb::parallel_for(std::size_t{0}, takes.size(), [&](std::size_t k) {
+      takes[k] = steady_cycle_root(std::move(takes[k]), timing[k]);
+    });
+  }
 
   int samples = options.samples;
   if (samples == 0) {

@@ -18,13 +18,6 @@ namespace {
 
 constexpr double kDeg = std::numbers::pi / 180;
 
-Mesh template_mesh(const test::Walker& w) {
-  Mesh m;
-  m.positions = test::to_vec3f(w.mesh.positions);
-  m.triangles = w.mesh.triangles;
-  return m;
-}
-
 timewarp::LocalTake local(const test::Walker& w, std::vector<Eigen::Matrix3Xd> frames,
                           const std::string& name) {
   return timewarp::make_local_take(name, std::move(frames), w.mesh.positions,
@@ -41,7 +34,7 @@ MotionSpace walk_space(const test::Walker& w, const std::vector<test::WalkSpec>&
   MotionClassConfig motion{"walks", {}, parameter, true};
   for (const auto& t : takes) motion.takes.push_back(t.name);
   const timewarp::WarpedClass warped =
-      timewarp::warp_class(motion, 25, template_mesh(w), std::move(takes), {});
+      timewarp::warp_class(motion, 25, test::walker_mesh(w), std::move(takes), {});
   return motionspace::build_motion_space(warped, {}, report);
 }
 
@@ -113,7 +106,7 @@ TEST(Parameters, JumpHeightIsMeasuredOnTheBlendedShapes) {
                                          local(w, test::jump_frames(w, high), "jump_high")};
   const MotionClassConfig motion{"jumps", {"jump_low", "jump_high"}, "height", false};
   const timewarp::WarpedClass warped =
-      timewarp::warp_class(motion, 25, template_mesh(w), std::move(takes), {});
+      timewarp::warp_class(motion, 25, test::walker_mesh(w), std::move(takes), {});
   motionspace::MotionSpaceReport report;
   const MotionSpace space = motionspace::build_motion_space(warped, {}, &report);
   // The torso's rise (the crouch before the flight lowers it first, not counted).

@@ -30,6 +30,31 @@ LocalTake local_walk(const test::Walker& w, const test::WalkSpec& spec, const st
   return make_local_take(name, test::walk_frames(w, spec), w.mesh.positions, torso);
 }
 
+// A walk whose whole body also sways rigidly with the gait, as the torso of aligned meshes
+// does: +-`lateral` m from side to side and +-`yaw` rad of heading, once per cycle. Its steady
+// root is the walk's own root.
+std::vector<Eigen::Matrix3Xd> swaying_walk(const test::Walker& w, const test::WalkSpec& spec,
+                                           double lateral, double yaw) {
+  std::vector<Eigen::Matrix3Xd> frames;
+  for (int f = 0; f < spec.frames; ++f) {
+    const double phase = test::walk_phase(spec, f);
+    const Root2 sway(0, lateral * std::sin(test::kTwoPi * phase),
+                     yaw * std::sin(test::kTwoPi * phase + 1));
+    frames.push_back(apply_root(test::walk_shape(w, spec, phase),
+                                compose(test::walk_root(spec, f), sway)));
+  }
+  return frames;
+}
+
+// Length of the ground-plane polyline through the roots over the distance between its ends.
+double length_over_chord(const std::vector<Root2>& roots) {
+  double length = 0;
+  for (std::size_t i = 1; i < roots.size(); ++i) {
+    length += (roots[i].head<2>() - roots[i - 1].head<2>()).norm();
+  }
+  return length / (roots.back().head<2>() - roots.front().head<2>()).norm();
+}
+
 TEST(RootMotion, TorsoIsTheUpperBodyNearTheAxis) {
   const test::Walker w = test::make_walker();
   const std::vector<double> torso = torso_weights(w.mesh.positions);
@@ -66,6 +91,20 @@ TEST(RootMotion, ComposeAndInverseAreConsistent) {
   EXPECT_LT(compose(a, inverse(a)).norm(), 1e-12);
   const Eigen::Matrix3Xd p = Eigen::Matrix3Xd::Random(3, 5);
   EXPECT_LT(test::max_vertex_distance(apply_root(apply_root(p, b), a), apply_root(p, ab)), 1e-12);
+}
+
+TEST(RootMotion, PowerMovesAlongTheScrew) {
+  // A steady turning walk covers, in a fraction of its time, that fraction of its motion.
+  test::WalkSpec spec;
+  spec.speed = 1.3;
+  spec.turn_rate = 40 * kDeg;
+  const Root2 whole = test::walk_root(spec, 25);
+  for (double a : {0.0, 0.3, 1.0, 1.7, -0.4}) {
+    EXPECT_LT((power(whole, a) - test::walk_root(spec, 25 * a)).norm(), 1e-12) << a;
+  }
+  EXPECT_LT((power(Root2(0.8, -0.1, 0.0), 0.25) - Root2(0.2, -0.025, 0.0)).norm(), 1e-12);
+  const Root2 a(0.5, 1.0, 2.5);
+  EXPECT_LT((compose(power(a, 0.3), power(a, 0.7)) - a).norm(), 1e-12);
 }
 
 TEST(RootMotion, HeadingsOfATurningWalkAreUnwrapped) {
@@ -139,6 +178,86 @@ TEST(Cycle, RootOfTheNextCycleContinuesTheMotion) {
   EXPECT_NEAR(r.x(), truth.x(), 0.02);
   EXPECT_NEAR(r.y(), truth.y(), 0.02);
   EXPECT_NEAR(r.z(), truth.z(), 0.06);
+}
+
+// The per-frame roots of a swaying walk weave; its steady root is the walk's own, and the
+// sway stays in the shapes (the frames are unchanged).
+TEST(Cycle, SteadyRootLeavesTheSwayInTheShape) {
+  const test::Walker w = test::make_walker();
+  const std::vector<double> torso = torso_weights(w.mesh.positions);
+  for (double turn : {0.0, 30.0}) {
+    test::WalkSpec spec;
+    spec.cycle_frames = 15;
+    spec.frames = 40;
+    spec.turn_rate = turn * kDeg;
+    spec.start_heading = 2.0;
+    spec.start_position = {3.0, -5.0};
+    const std::vector<Eigen::Matrix3Xd> frames = swaying_walk(w, spec, 0.05, 0.25);
+    const LocalTake take = make_local_take("sway", frames, w.mesh.positions, torso, 8);
+    const TakeTiming timing = cyclic_timing(find_cycle(take, CycleOptions{}));
+    const LocalTake steady = steady_cycle_root(take, timing);
+    std::vector<Root2> truth, cycle_weaving, cycle_steady;
+    for (int f = 0; f < spec.frames; ++f) {
+      truth.push_back(test::walk_root(spec, f));
+      EXPECT_LT(test::max_vertex_distance(apply_root(steady.shapes[f], steady.roots[f]), frames[f]),
+                1e-9);
+      if (f < timing.start || f > timing.start + timing.length) continue;
+      // Over the cycle (beyond it, the small error of the turn per cycle accumulates).
+      EXPECT_LT((steady.roots[f].head<2>() - truth[f].head<2>()).norm(), 0.005)
+          << "turn " << turn << " frame " << f;
+      EXPECT_NEAR(steady.roots[f].z(), truth[f].z(), 0.5 * kDeg) << "turn " << turn << " frame " << f;
+    }
+    std::vector<Root2> cycle_truth;
+    for (int i = 0; i <= 60; ++i) {  // the cycle, 4 samples per frame
+      const double x = timing.start + i / 60.0 * timing.length;
+      cycle_truth.push_back(test::walk_root(spec, x));
+      cycle_weaving.push_back(root_at(take, x));
+      cycle_steady.push_back(root_at(steady, x));
+    }
+    const double true_ratio = length_over_chord(cycle_truth);
+    EXPECT_NEAR(length_over_chord(cycle_steady), true_ratio, 0.002) << "turn " << turn;
+    // The per-frame roots weave (this test means something).
+    EXPECT_GT(length_over_chord(cycle_weaving), true_ratio + 0.01) << "turn " << turn;
+  }
+}
+
+// The timewarp of a class of swaying walks: every take's root curve over the cycle is as
+// straight (or as steadily curved) as the walk's, its heading turns at a constant rate, and the
+// cycle still advances by the walk's motion.
+TEST(Cycle, WarpedCyclesHaveSteadyRoots) {
+  const test::Walker w = test::make_walker();
+  const std::vector<double> torso = torso_weights(w.mesh.positions);
+  for (double turn : {0.0, 30.0}) {
+    std::vector<test::WalkSpec> specs(2);
+    specs[0].cycle_frames = 15;
+    specs[1].cycle_frames = 12;
+    specs[1].speed = 1.6;
+    specs[1].start_phase = 0.3;
+    std::vector<LocalTake> takes;
+    for (test::WalkSpec& s : specs) {
+      s.frames = 30;
+      s.turn_rate = turn * kDeg;
+      takes.push_back(make_local_take(takes.empty() ? "slow" : "fast",
+                                      swaying_walk(w, s, 0.05, 0.25), w.mesh.positions, torso, 8));
+    }
+    const MotionClassConfig motion{"walks", {"slow", "fast"}, "speed", true};
+    const WarpedClass warped = warp_class(motion, 25, test::walker_mesh(w), std::move(takes), {});
+    for (std::size_t k = 0; k < specs.size(); ++k) {
+      const WarpedTake& t = warped.takes[k];
+      const double seconds = t.seconds.back();
+      std::vector<Root2> truth;
+      for (int i = 0; i <= 60; ++i) truth.push_back(test::walk_root(specs[k], i / 60.0 * specs[k].cycle_frames));
+      EXPECT_NEAR(length_over_chord(t.roots), length_over_chord(truth), 0.002) << t.name << " turn " << turn;
+      EXPECT_NEAR(seconds, specs[k].cycle_frames / 25, 0.01) << t.name;
+      const Root2& end = t.roots.back();
+      EXPECT_NEAR(std::hypot(end.x(), end.y()), (truth.back().head<2>() - truth.front().head<2>()).norm(), 0.01) << t.name;
+      EXPECT_NEAR(end.z(), specs[k].turn_rate * seconds, 1 * kDeg) << t.name;
+      for (std::size_t i = 0; i < t.roots.size(); ++i) {
+        EXPECT_NEAR(t.roots[i].z(), end.z() * t.seconds[i] / seconds, 0.5 * kDeg)
+            << t.name << " turn " << turn << " sample " << i;
+      }
+    }
+  }
 }
 
 TEST(Cycle, ATakeShorterThanACycleCannotBeClosed) {

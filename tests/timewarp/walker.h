@@ -47,6 +47,14 @@ inline Walker make_walker(int rings = 9, int segments = 10) {
   return w;
 }
 
+// The walker's template as a mesh (the timewarp stage's input type).
+inline Mesh walker_mesh(const Walker& w) {
+  Mesh m;
+  m.positions = to_vec3f(w.mesh.positions);
+  m.triangles = w.mesh.triangles;
+  return m;
+}
+
 // Legs rotated about the hips (pitch, + swings the foot forward), torso raised and twisted.
 inline Eigen::Matrix3Xd pose_walker(const Walker& w, double left_pitch, double right_pitch,
                                     double torso_lift, double torso_twist) {
