@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 #include <spawn.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <tbb/parallel_for.h>
 #include <unistd.h>
@@ -350,6 +351,8 @@ std::optional<CompletionRecord> read_record(const fs::path& path) {
     r.output_bytes = j.at("output_bytes").get<std::uint64_t>();
     r.finished = j.at("finished").get<std::string>();
     r.seconds = j.at("seconds").get<double>();
+    r.cpu_seconds = j.value("cpu_seconds", 0.0);
+    r.peak_rss_bytes = j.value("peak_rss_bytes", std::uint64_t{0});
     return r;
   } catch (const nlohmann::json::exception&) {
     return std::nullopt;
@@ -367,6 +370,8 @@ void write_record(const fs::path& path, const CompletionRecord& r) {
   j["executable_hash"] = r.fingerprint.executable_hash;
   j["finished"] = r.finished;
   j["seconds"] = r.seconds;
+  j["cpu_seconds"] = r.cpu_seconds;
+  j["peak_rss_bytes"] = r.peak_rss_bytes;
   j["output_bytes"] = r.output_bytes;
   j["inputs"] = hashes_to_json(r.fingerprint.inputs);
   j["outputs"] = hashes_to_json(r.outputs);
@@ -495,8 +500,10 @@ CaptureIndex session_capture(const Session& session) {
 namespace {
 
 // Runs `args` (args[0] is the executable) and waits for it; its standard output goes to
-// `stdout_fd` when that is >= 0. Returns the exit code (128 + signal when killed).
-int spawn_and_wait(std::vector<std::string> args, int stdout_fd = -1) {
+// `stdout_fd` when that is >= 0. Returns the exit code (128 + signal when killed); `usage`
+// (when given) receives the child's CPU time and peak memory.
+int spawn_and_wait(std::vector<std::string> args, int stdout_fd = -1,
+                   ProcessUsage* usage = nullptr) {
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
@@ -511,10 +518,16 @@ int spawn_and_wait(std::vector<std::string> args, int stdout_fd = -1) {
   ::posix_spawn_file_actions_destroy(&actions);
   if (rc != 0) throw IoError(fmt::format("cannot start {}: {}", args[0], std::strerror(rc)));
   int status = 0;
-  while (::waitpid(pid, &status, 0) < 0) {
+  struct rusage ru {};
+  while (::wait4(pid, &status, 0, &ru) < 0) {
     if (errno != EINTR) {
       throw IoError(fmt::format("waiting for {} failed: {}", args[0], std::strerror(errno)));
     }
+  }
+  if (usage) {
+    auto seconds = [](const timeval& t) { return double(t.tv_sec) + 1e-6 * double(t.tv_usec); };
+    usage->cpu_seconds = seconds(ru.ru_utime) + seconds(ru.ru_stime);
+    usage->peak_rss_bytes = std::uint64_t(ru.ru_maxrss) * 1024;  // Linux reports kilobytes
   }
   if (WIFEXITED(status)) return WEXITSTATUS(status);
   if (WIFSIGNALED(status)) return 128 + WTERMSIG(status);
@@ -524,7 +537,8 @@ int spawn_and_wait(std::vector<std::string> args, int stdout_fd = -1) {
 }  // namespace
 
 int run_stage_process(const StageSpec& stage, const fs::path& session_root, int threads,
-                      bool verbose, const std::vector<std::string>& job_arguments) {
+                      bool verbose, const std::vector<std::string>& job_arguments,
+                      ProcessUsage* usage) {
   std::vector<std::string> args = {stage.executable.string(), session_root.string()};
   args.insert(args.end(), stage.arguments.begin(), stage.arguments.end());
   args.insert(args.end(), job_arguments.begin(), job_arguments.end());
@@ -533,7 +547,7 @@ int run_stage_process(const StageSpec& stage, const fs::path& session_root, int 
     args.push_back(std::to_string(threads));
   }
   if (verbose) args.push_back("-v");
-  return spawn_and_wait(std::move(args));
+  return spawn_and_wait(std::move(args), -1, usage);
 }
 
 std::string default_options_yaml(const std::vector<StageSpec>& built) {
@@ -635,8 +649,13 @@ RunResult run_pipeline(const fs::path& session_dir, const std::vector<StageSpec>
         stage_jobs(stage, stage.per_frame() ? session_capture(session) : CaptureIndex{},
                    request.frames_per_job);
     int code = 0;
+    event.usage = {};
     for (const Job& job : jobs) {
-      code = run_stage_process(stage, root, request.threads, request.verbose, job.arguments());
+      ProcessUsage used;
+      code = run_stage_process(stage, root, request.threads, request.verbose, job.arguments(),
+                               &used);
+      event.usage.cpu_seconds += used.cpu_seconds;
+      event.usage.peak_rss_bytes = std::max(event.usage.peak_rss_bytes, used.peak_rss_bytes);
       if (code != 0) {
         event.log_file = session.logs_dir() / job.log_name();
         event.reason = fmt::format("job {} failed", job.name());
@@ -661,6 +680,8 @@ RunResult run_pipeline(const fs::path& session_dir, const std::vector<StageSpec>
     record.output_bytes = folder_bytes(root, stage.outputs);
     record.finished = local_time_now();
     record.seconds = event.seconds;
+    record.cpu_seconds = event.usage.cpu_seconds;
+    record.peak_rss_bytes = event.usage.peak_rss_bytes;
     write_record(record_file, record);  // last: only now is the stage complete
 
     for (const auto& out : stage.outputs) rewritten[out] = stage.name;

@@ -121,6 +121,8 @@ struct CompletionRecord {
   std::uint64_t output_bytes = 0;
   std::string finished;  // local time "YYYY-MM-DD HH:MM:SS"
   double seconds = 0;    // wall-clock duration of the run
+  double cpu_seconds = 0;          // user + system CPU time of its processes
+  std::uint64_t peak_rss_bytes = 0;  // largest resident set of any of its processes
 };
 
 // Reads a record; nullopt when it is absent or unreadable (a damaged record counts as none).
@@ -181,11 +183,19 @@ bool session_uses_synth(const Session& session);
 std::vector<StageSpec> plan_run(const Session& session, const std::vector<StageSpec>& built,
                                 const RunRequest& request);
 
+// What a finished child process used (from wait4's rusage).
+struct ProcessUsage {
+  double cpu_seconds = 0;            // user + system
+  std::uint64_t peak_rss_bytes = 0;  // maximum resident set size
+};
+
 // Runs one stage executable as a child process (stderr and stdout shared with the driver):
 // `<executable> <session> [arguments...] [job arguments...] [--threads N] [-v]`. Returns its exit code,
-// 128 + signal number when it was killed. Throws IoError when it cannot be started.
+// 128 + signal number when it was killed; `usage` (when given) receives what it used. Throws
+// IoError when it cannot be started.
 int run_stage_process(const StageSpec& stage, const fs::path& session_root, int threads,
-                      bool verbose, const std::vector<std::string>& job_arguments = {});
+                      bool verbose, const std::vector<std::string>& job_arguments = {},
+                      ProcessUsage* usage = nullptr);
 
 // The defaults of every option of every built stage, as one YAML document with a `stages:`
 // mapping (what config/defaults.yaml holds), gathered from `fourd-<stage> --print-defaults`.
@@ -199,6 +209,7 @@ struct StageEvent {
   std::string stage;
   std::string reason;  // why it runs, or why it is skipped
   double seconds = 0;  // kFinished/kFailed: duration
+  ProcessUsage usage;  // kFinished/kFailed: CPU time (all jobs), peak memory (largest job)
   int exit_code = 0;   // kFailed
   fs::path log_file;   // the stage's own log (kFailed: the failing job's)
   std::size_t jobs = 1;  // kFinished: the jobs the stage ran as

@@ -37,8 +37,9 @@ void print_event(const StageEvent& e) {
       log::info("[{}/{}] {} ... ({})", e.index, e.count, e.stage, e.reason);
       break;
     case StageEvent::Kind::kFinished:
-      log::info("[{}/{}] {} done in {:.1f} s{}", e.index, e.count, e.stage, e.seconds,
-                e.jobs > 1 ? fmt::format(" ({} jobs)", e.jobs) : "");
+      log::info("[{}/{}] {} done in {:.1f} s{} (CPU {:.1f} s, peak memory {})", e.index, e.count,
+                e.stage, e.seconds, e.jobs > 1 ? fmt::format(", {} jobs", e.jobs) : "",
+                e.usage.cpu_seconds, human_bytes(e.usage.peak_rss_bytes));
       break;
     case StageEvent::Kind::kFailed:
       log::error("[{}/{}] {} failed after {:.1f} s ({})", e.index, e.count, e.stage, e.seconds,
@@ -63,14 +64,18 @@ int command_run(const std::string& session_dir, const RunRequest& request,
 
 int command_status(const std::string& session_dir, const std::vector<StageSpec>& built) {
   std::vector<StageStatus> table = session_status(session_dir, built);
-  fmt::print("{:<18} {:<21} {:<20} {:>9} {:>10}  {}\n", "stage", "state", "last run", "duration",
-             "outputs", "notes");
+  fmt::print("{:<18} {:<21} {:<20} {:>9} {:>9} {:>10} {:>10}  {}\n", "stage", "state", "last run",
+             "duration", "CPU", "peak mem", "outputs", "notes");
   for (const auto& s : table) {
     std::string when = s.record ? s.record->finished : "-";
     std::string took = s.record ? fmt::format("{:.1f} s", s.record->seconds) : "-";
-    std::string notes = s.detail;
-    fmt::print("{:<18} {:<21} {:<20} {:>9} {:>10}  {}\n", s.stage, state_name(s.state), when, took,
-               s.output_bytes ? human_bytes(s.output_bytes) : "-", notes);
+    std::string cpu = s.record && s.record->cpu_seconds > 0
+                          ? fmt::format("{:.1f} s", s.record->cpu_seconds) : "-";
+    std::string peak = s.record && s.record->peak_rss_bytes > 0
+                           ? human_bytes(s.record->peak_rss_bytes) : "-";
+    fmt::print("{:<18} {:<21} {:<20} {:>9} {:>9} {:>10} {:>10}  {}\n", s.stage,
+               state_name(s.state), when, took, cpu, peak,
+               s.output_bytes ? human_bytes(s.output_bytes) : "-", s.detail);
   }
   return kExitOk;
 }

@@ -163,6 +163,10 @@ TEST_F(DriverTest, RecordHoldsInputOutputAndOptionHashes) {
   EXPECT_TRUE(record->outputs.count("a/result.txt"));
   EXPECT_FALSE(record->outputs.count(std::string("a/") + kRecordFile));
   EXPECT_GT(record->output_bytes, 0u);
+  // What the stage's process used: a shell has some resident memory, and no time is negative.
+  EXPECT_GT(record->peak_rss_bytes, 100u * 1024);
+  EXPECT_GE(record->cpu_seconds, 0.0);
+  EXPECT_LE(record->cpu_seconds, record->seconds * 64 + 1.0);
   // The record of make (in a/) is not an input of copy, which reads a/.
   auto copy = read_record(session_ / "b" / kRecordFile);
   ASSERT_TRUE(copy);
