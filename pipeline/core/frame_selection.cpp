@@ -35,7 +35,9 @@ std::string FrameSelection::job_suffix() const {
   return (take.empty() ? std::string("all") : take) + (frames.empty() ? "" : "." + frames);
 }
 
-std::string job_log_name(const std::string& stage, const FrameSelection& selection) {
+std::string job_log_name(const std::string& stage, const FrameSelection& selection,
+                         const std::string& part) {
+  if (!part.empty()) return stage + "." + part + ".log";
   const std::string suffix = selection.job_suffix();
   return stage + (suffix.empty() ? "" : "." + suffix) + ".log";
 }

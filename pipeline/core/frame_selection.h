@@ -29,9 +29,11 @@ struct FrameSelection {
 };
 
 // The log file name of one job: "<stage>.log" for a whole stage (or its --finish job),
-// "<stage>.<take>.<first>-<last>.log" for a frame-range job. `stage` names the variant
+// "<stage>.<take>.<first>-<last>.log" for a frame-range job, "<stage>.<part>.log" for a part
+// of a stage split along a tree ("align.tree", "align.branch2"). `stage` names the variant
 // ("reconstruct_oracle"). Stages write it under logs/; the driver and the workflow point to it.
-std::string job_log_name(const std::string& stage, const FrameSelection& selection);
+std::string job_log_name(const std::string& stage, const FrameSelection& selection,
+                         const std::string& part = {});
 
 // Parses --take/--frames ("FIRST:LAST", "FIRST:", "N", comma-separated). Throws UsageError
 // for text that is not a range, an empty or negative range, or ranges that overlap.

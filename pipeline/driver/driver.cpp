@@ -172,7 +172,8 @@ const std::vector<StageSpec>& stage_table() {
       // Its per-frame record (.json) is written last and also for a frame that failed.
       {"reconstruct", {"capture", "segment", "calibration"}, {"reconstruct"}, true, {}, {}, {},
        {"{take}/{frame}.json"}},
-      {"align", {"reconstruct"}, {"align"}, true, {}},
+      // Split along its shape tree: a tree job, branch jobs, a finish job (stage_jobs).
+      {"align", {"reconstruct"}, {"align"}, true, {}, {}, {}, {}, /*tree_split=*/true},
       {"timewarp", {"align"}, {"timewarp"}, true, {}},
       {"motionspace", {"timewarp"}, {"motionspace"}, true, {}},
       {"texture", {"align", "capture", "calibration"}, {"texture"}, true, {}},
@@ -453,14 +454,29 @@ std::vector<StageSpec> plan_run(const Session& session, const std::vector<StageS
   return with_oracle_variants(session.root(), plan, built, oracle);
 }
 
+std::string Job::part() const {
+  if (tree) return "tree";
+  if (branch >= 0) return "branch" + std::to_string(branch);
+  return {};
+}
+
+std::string Job::tree_job_file(const std::string& output_folder) const {
+  if (tree) return output_folder + "/.jobs/plan.bin";
+  if (branch >= 0) return output_folder + "/.jobs/branch" + std::to_string(branch) + ".bin";
+  return {};
+}
+
 std::string Job::name() const {
   if (finish) return stage + ".finish";
+  if (!part().empty()) return stage + "." + part();
   const std::string suffix = selection.job_suffix();
   return suffix.empty() ? stage : stage + "." + suffix;
 }
 
 std::vector<std::string> Job::arguments() const {
   if (finish) return {"--finish"};
+  if (tree) return {"--tree", "--branches", std::to_string(branches)};
+  if (branch >= 0) return {"--branch", std::to_string(branch)};
   std::vector<std::string> out;
   if (!selection.take.empty()) out.insert(out.end(), {"--take", selection.take});
   if (!selection.ranges.empty()) out.insert(out.end(), {"--frames", selection.frames_text()});
@@ -468,7 +484,23 @@ std::vector<std::string> Job::arguments() const {
 }
 
 std::vector<Job> stage_jobs(const StageSpec& stage, const CaptureIndex& capture,
-                            int frames_per_job) {
+                            int frames_per_job, int branch_jobs) {
+  if (stage.tree_split) {
+    if (branch_jobs < 1) throw UsageError("--branch-jobs must be at least 1");
+    std::vector<Job> jobs;
+    Job tree{stage.name};
+    tree.tree = true;
+    tree.branches = branch_jobs;
+    jobs.push_back(tree);
+    for (int k = 0; k < branch_jobs; ++k) {
+      Job branch{stage.name};
+      branch.branch = k;
+      branch.branches = branch_jobs;
+      jobs.push_back(branch);
+    }
+    jobs.push_back(Job{stage.name, {}, true});
+    return jobs;
+  }
   if (!stage.per_frame()) return {Job{stage.name, {}, false}};
   if (frames_per_job < 0) throw UsageError("--frames-per-job must be 0 or more");
   std::vector<Job> jobs;
@@ -647,7 +679,7 @@ RunResult run_pipeline(const fs::path& session_dir, const std::vector<StageSpec>
     // A per-frame stage runs as its jobs, one after the other (each uses every thread).
     const std::vector<Job> jobs =
         stage_jobs(stage, stage.per_frame() ? session_capture(session) : CaptureIndex{},
-                   request.frames_per_job);
+                   request.frames_per_job, request.branch_jobs);
     int code = 0;
     event.usage = {};
     for (const Job& job : jobs) {

@@ -55,6 +55,9 @@ struct StageSpec {
   // standing for the frame's names. Empty: the stage is one job.
   std::vector<std::string> frame_outputs;
   bool per_frame() const { return !frame_outputs.empty(); }
+  // A stage split along a tree of frames (align): a --tree job that plans branch jobs, the
+  // branch jobs, and a --finish job; see stage_jobs. Its jobs' files live in <output>/.jobs/.
+  bool tree_split = false;
 };
 
 // The folder of ground-truth-derived inputs, written by the "oracle" step.
@@ -142,20 +145,31 @@ struct Job {
   std::string stage;         // the stage (or oracle variant) name
   FrameSelection selection;  // a range job: one take, one range
   bool finish = false;
+  // A tree-split stage's job: the tree job (tree), or branch job `branch` of `branches`.
+  bool tree = false;
+  int branch = -1;
+  int branches = 0;
 
-  // "reconstruct", "reconstruct.walk.0-7", "reconstruct.finish"
+  // "reconstruct", "reconstruct.walk.0-7", "reconstruct.finish", "align.tree", "align.branch1"
   std::string name() const;
-  // Added to the stage's command line: --take T --frames A:B, or --finish.
+  // Added to the stage's command line: --take T --frames A:B, --tree --branches B,
+  // --branch K, or --finish.
   std::vector<std::string> arguments() const;
+  // "tree", "branch<K>", or "" (see tree_job_part in stages/common/stage.h).
+  std::string part() const;
   // Its log, relative to the session's logs/ (the stage writes it).
-  std::string log_name() const { return job_log_name(stage, selection); }
+  std::string log_name() const { return job_log_name(stage, selection, part()); }
+  // A tree-split stage's files of this job (tree: the plan; branch: its result), relative to
+  // the session, given the stage's first output folder.
+  std::string tree_job_file(const std::string& output_folder) const;
 };
 
-// The jobs `stage` runs as, in order: one job for a stage that is not per-frame; otherwise
-// every take cut into ranges of at most `frames_per_job` frames (0: one range per take),
-// then the finish job.
+// The jobs `stage` runs as, in order: one job for a stage that is neither per-frame nor
+// tree-split; a per-frame stage's takes cut into ranges of at most `frames_per_job` frames
+// (0: one range per take), then the finish job; a tree-split stage's tree job, its
+// `branch_jobs` branch jobs, then the finish job.
 std::vector<Job> stage_jobs(const StageSpec& stage, const CaptureIndex& capture,
-                            int frames_per_job);
+                            int frames_per_job, int branch_jobs = 1);
 
 // The session's capture (takes and frame counts, checked as scan_capture does).
 CaptureIndex session_capture(const Session& session);
@@ -170,6 +184,7 @@ struct RunRequest {
   int threads = 0;               // passed to the stages; 0 = all cores
   bool verbose = false;          // passed to the stages
   int frames_per_job = 0;        // per-frame stages: frames per job (0: one job per take)
+  int branch_jobs = 1;           // tree-split stages (align): branch jobs
 };
 
 // Whether synth belongs to this session's runs: only when session.yaml has a stages.synth

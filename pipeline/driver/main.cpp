@@ -121,6 +121,10 @@ int main(int argc, char** argv) {
                   "per-frame stages (segment, reconstruct) run as jobs of at most N frames of one\n"
                   "take, then a --finish job (0 = one job per take)")
       ->check(CLI::NonNegativeNumber);
+  run->add_option("--branch-jobs", request.branch_jobs,
+                  "align runs as a tree job, N branch jobs (independent subtrees of its shape\n"
+                  "tree) and a --finish job; the result does not depend on N")
+      ->check(CLI::PositiveNumber);
   run->add_flag("-v,--verbose", request.verbose, "debug messages (also from the stages)");
   run->footer("stages built, in order: " + stage_list(built) +
               "\nEach stage logs to <session>/logs/<stage>.log. Without a stages.synth section in "
@@ -135,6 +139,9 @@ int main(int argc, char** argv) {
   workflow->add_option("session", session_dir, "session folder (holds session.yaml)")->required();
   workflow->add_option("--frames-per-job", workflow_request.frames_per_job,
                        "per-frame stages: frames of one take per job")
+      ->check(CLI::PositiveNumber);
+  workflow->add_option("--branch-jobs", workflow_request.branch_jobs,
+                       "align: branch jobs (independent subtrees of its shape tree)")
       ->check(CLI::PositiveNumber);
   workflow->add_option("--oracle", workflow_oracle, "as for `fourd run`")
       ->allow_extra_args(false)

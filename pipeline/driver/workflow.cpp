@@ -139,8 +139,11 @@ WorkflowFiles write_workflow(const fs::path& session_dir, const std::vector<Stag
   std::size_t job_count = 0;
   for (const StageSpec& stage : plan) {
     const std::string cost_key = stage.options_stage.empty() ? stage.name : stage.options_stage;
-    const std::vector<Job> jobs = stage_jobs(stage, capture, request.frames_per_job);
+    const std::vector<Job> jobs =
+        stage_jobs(stage, capture, request.frames_per_job, request.branch_jobs);
+    // What the finish job waits for: every range job's frame files, or every branch job's result.
     std::vector<std::string> stage_frame_files;
+    std::string plan_file;  // a tree-split stage's tree job output
     for (const Job& job : jobs) {
       const std::string rule = rule_name(job);
       if (!names.insert(rule).second) {
@@ -149,7 +152,23 @@ WorkflowFiles write_workflow(const fs::path& session_dir, const std::vector<Stag
       }
       std::vector<std::string> inputs, outputs;
       const bool range_job = stage.per_frame() && !job.finish;
-      if (range_job) {
+      const bool tree_part = stage.tree_split && !job.finish;
+      if (tree_part) {
+        const std::string file = job.tree_job_file(stage.outputs.front());
+        outputs.push_back(file);
+        if (job.tree) {
+          plan_file = file;
+          for (const std::string& folder : stage.inputs) {
+            const StageSpec* p = producer_of(plan, folder);
+            if (p != nullptr && p != &stage) inputs.push_back(marker(p->name));
+          }
+          std::sort(inputs.begin(), inputs.end());
+          inputs.erase(std::unique(inputs.begin(), inputs.end()), inputs.end());
+        } else {
+          inputs.push_back(plan_file);
+          stage_frame_files.push_back(file);
+        }
+      } else if (range_job) {
         const int frames = frame_count(job.selection.take);
         outputs = frame_files(stage, job.selection, frames, cameras);
         stage_frame_files.insert(stage_frame_files.end(), outputs.begin(), outputs.end());
@@ -195,7 +214,7 @@ WorkflowFiles write_workflow(const fs::path& session_dir, const std::vector<Stag
       command += " --threads {threads}";
       rules += fmt::format("rule {}:\n", rule);
       rules += list_block("input", inputs);
-      if (range_job) {
+      if (range_job || tree_part) {
         rules += list_block("output", outputs);
       } else {
         rules += fmt::format("    output:\n        touch({}),\n", py_string(marker(stage.name)));

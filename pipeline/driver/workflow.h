@@ -4,8 +4,9 @@
 //
 // Written to <session>/workflow/:
 //   Snakefile        one rule per job; it calls the stage executable with the job's
-//                    --take/--frames (or --finish), declares the job's inputs and outputs
-//                    (per-frame stages: the frames' files; other stages: a marker file
+//                    --take/--frames (or --tree/--branch/--finish), declares the job's inputs
+//                    and outputs (per-frame stages: the frames' files; align's tree and branch
+//                    jobs: their files in align/.jobs/; other jobs: a marker file
 //                    workflow/done/<stage> touched after success), its log (logs/<job>.log,
 //                    written by the stage), its threads and memory, and a benchmark file
 //                    (workflow/benchmarks/<job>.tsv: Snakemake's measure of its wall time,
@@ -37,6 +38,7 @@ const std::map<std::string, JobCost>& default_job_costs();
 
 struct WorkflowRequest {
   int frames_per_job = 8;  // per-frame stages: frames per job
+  int branch_jobs = 4;     // tree-split stages (align): branch jobs
   std::set<std::string> oracle;  // as RunRequest::oracle
 };
 

@@ -5,13 +5,17 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cctype>
 #include <cmath>
+#include <fmt/ranges.h>
 #include <map>
 #include <mutex>
 #include <nlohmann/json.hpp>
+#include <random>
 #include <set>
 
+#include "pipeline/core/binary_format.h"
 #include "pipeline/core/error.h"
 #include "pipeline/core/files.h"
 #include "pipeline/core/log.h"
@@ -321,16 +325,361 @@ json run_sequential(const TemplateModel& model, const ShapeDescriptor& root_desc
   return result;
 }
 
-}  // namespace
+// ---- The tree-split jobs ---------------------------------------------------------------
+//
+// The stage runs as a tree job (shape histograms, tree, template, and the registration of the
+// tree's top), branch jobs (each registers whole subtrees hanging off the top, independently
+// of the others) and a finish job (re-parenting of what failed, the baseline, the reports).
+// The jobs pass their state in <output>/.jobs/: plan.bin from the tree job, branch<K>.bin from
+// each branch job. Every registration depends only on its parent's fit, so the result does not
+// depend on how many branch jobs there are.
 
-void run_align(const Session& session, const StageArgs& args) {
-  AlignOptions options;
-  session.stage_options("align", options);
-  const fs::path in = stage_input_dir(session, args, "reconstruct");
-  const fs::path out = stage_output_dir(session, args, "align");
-  log::Timer total_timer;
+constexpr FileMagic kPlanMagic("FOURDAP");
+constexpr FileMagic kBranchMagic("FOURDAB");
+constexpr std::uint32_t kJobFileVersion = 1;
 
-  std::vector<FrameData> frames = list_frames(in, args.selection);
+fs::path jobs_dir(const fs::path& out) { return out / ".jobs"; }
+fs::path plan_file(const fs::path& out) { return jobs_dir(out) / "plan.bin"; }
+fs::path branch_file(const fs::path& out, int branch) {
+  return jobs_dir(out) / fmt::format("branch{}.bin", branch);
+}
+
+// Everything the tree job learned that the other jobs need.
+struct Plan {
+  std::uint64_t id = 0;      // ties branch results to the plan they were made from
+  std::string options_yaml;  // the options it was made with: later jobs must see the same
+  std::vector<FrameData> frames;
+  std::vector<int> usable;   // database index -> frame index
+  DistanceMatrix distances;  // between database frames
+  ShapeTree tree;            // over database frames
+  double median_edge = 0;
+  int branches = 1;
+  std::vector<int> job_of;   // database index -> branch job; -1: registered by the tree job
+  double seconds = 0;        // the tree job's wall time
+};
+
+// The registrations of the database frames: what every attempt left.
+struct Registrations {
+  std::vector<Fit> fits;
+  std::vector<char> aligned, attempted, has_fit;
+  std::vector<int> parent_of;  // database indices, as finally registered (or best tried)
+  std::vector<std::set<int>> tried;
+  explicit Registrations(int n)
+      : fits(n), aligned(n, 0), attempted(n, 0), has_fit(n, 0), parent_of(n, -1), tried(n) {}
+};
+
+std::string options_text(const AlignOptions& options) {
+  YAML::Emitter yaml;
+  yaml << to_yaml(options);
+  return std::string(yaml.c_str()) + "\n";
+}
+
+void write_descriptor(BinaryWriter& w, const ShapeDescriptor& d) {
+  w.write_vector(d.bins);
+  w.write(d.centroid);
+  w.write(d.volume);
+}
+ShapeDescriptor read_descriptor(BinaryReader& r) {
+  ShapeDescriptor d;
+  d.bins = r.read_vector<float>();
+  d.centroid = r.read<Eigen::Vector3d>();
+  d.volume = r.read<double>();
+  return d;
+}
+
+// The registration records of database frames `ks` (those attempted).
+void write_results(BinaryWriter& w, const Plan& plan, const Registrations& reg,
+                   const std::vector<int>& ks) {
+  std::vector<int> attempted;
+  for (int k : ks) {
+    if (reg.attempted[k]) attempted.push_back(k);
+  }
+  w.write<std::uint64_t>(attempted.size());
+  for (int k : attempted) {
+    w.write<int>(k);
+    w.write<std::uint8_t>(reg.aligned[k]);
+    w.write<std::uint8_t>(reg.has_fit[k]);
+    w.write<int>(reg.parent_of[k]);
+    w.write_vector(std::vector<int>(reg.tried[k].begin(), reg.tried[k].end()));
+    w.write_string(plan.frames[plan.usable[k]].status.error);
+    const Fit& fit = reg.fits[k];
+    w.write_vector(fit.state.rotation);
+    w.write_vector(fit.state.translation);
+    w.write_vector(fit.state.positions);
+    w.write(fit.stats);
+    w.write(fit.seconds);
+  }
+}
+void read_results(BinaryReader& r, Plan& plan, Registrations& reg, int vertices) {
+  const auto count = r.read<std::uint64_t>();
+  const int n = static_cast<int>(plan.usable.size());
+  for (std::uint64_t i = 0; i < count; ++i) {
+    const int k = r.read<int>();
+    if (k < 0 || k >= n) {
+      throw InputError(fmt::format("{}: frame index {} out of range", r.path().string(), k));
+    }
+    reg.attempted[k] = 1;
+    reg.aligned[k] = r.read<std::uint8_t>();
+    reg.has_fit[k] = r.read<std::uint8_t>();
+    reg.parent_of[k] = r.read<int>();
+    for (int p : r.read_vector<int>()) reg.tried[k].insert(p);
+    plan.frames[plan.usable[k]].status.error = r.read_string();
+    Fit& fit = reg.fits[k];
+    fit.state.rotation = r.read_vector<Eigen::Matrix3d>();
+    fit.state.translation = r.read_vector<Eigen::Vector3d>();
+    fit.state.positions = r.read_vector<Vec3f>();
+    fit.stats = r.read<FitStats>();
+    fit.seconds = r.read<double>();
+    if (reg.has_fit[k] && static_cast<int>(fit.state.positions.size()) != vertices) {
+      throw InputError(fmt::format("{}: a fit of {} vertices for a template of {}",
+                                   r.path().string(), fit.state.positions.size(), vertices));
+    }
+  }
+}
+
+void save_plan(const fs::path& file, const Plan& plan, const Registrations& reg) {
+  BinaryWriter w;
+  w.write(plan.id);
+  w.write_string(plan.options_yaml);
+  w.write<std::uint64_t>(plan.frames.size());
+  for (const FrameData& f : plan.frames) {
+    w.write_string(f.status.take);
+    w.write<int>(f.status.frame);
+    w.write_string(f.file.string());
+    w.write<std::uint8_t>(f.usable);
+    w.write<std::uint64_t>(f.status.flags.size());
+    for (const std::string& flag : f.status.flags) w.write_string(flag);
+    w.write_string(f.status.error);
+    write_descriptor(w, f.descriptor);
+  }
+  w.write_vector(plan.usable);
+  w.write_matrix(plan.distances.value);
+  w.write_matrix(plan.distances.shift);
+  w.write<int>(plan.tree.root);
+  w.write_vector(plan.tree.parent);
+  w.write_vector(plan.tree.edge_cost);
+  w.write_vector(plan.tree.depth);
+  w.write_vector(plan.tree.order);
+  w.write(plan.median_edge);
+  w.write<int>(plan.branches);
+  w.write_vector(plan.job_of);
+  w.write(plan.seconds);
+  std::vector<int> top;
+  for (int k = 0; k < static_cast<int>(plan.usable.size()); ++k) {
+    if (plan.job_of[k] < 0) top.push_back(k);
+  }
+  write_results(w, plan, reg, top);
+  w.save(file, kPlanMagic, kJobFileVersion);
+}
+
+// Reads the plan and the tree job's registrations; checks it against the options in force.
+Plan load_plan(const fs::path& out, const AlignOptions& options, Registrations* reg,
+               int* template_vertices) {
+  const fs::path file = plan_file(out);
+  if (!fs::is_regular_file(file)) {
+    throw InputError(fmt::format("{}: no plan (run the --tree job first)", file.string()));
+  }
+  BinaryReader r = BinaryReader::open(file, kPlanMagic, {kJobFileVersion});
+  Plan plan;
+  plan.id = r.read<std::uint64_t>();
+  plan.options_yaml = r.read_string();
+  if (plan.options_yaml != options_text(options)) {
+    throw InputError(fmt::format("{}: made with other align options than session.yaml's now: "
+                                 "rerun the --tree job",
+                                 file.string()));
+  }
+  plan.frames.resize(r.read<std::uint64_t>());
+  for (FrameData& f : plan.frames) {
+    f.status.take = r.read_string();
+    f.status.frame = r.read<int>();
+    f.file = r.read_string();
+    f.usable = r.read<std::uint8_t>();
+    f.status.flags.resize(r.read<std::uint64_t>());
+    for (std::string& flag : f.status.flags) flag = r.read_string();
+    f.status.error = r.read_string();
+    f.descriptor = read_descriptor(r);
+  }
+  plan.usable = r.read_vector<int>();
+  plan.distances.value = r.read_matrix<Eigen::MatrixXd>();
+  plan.distances.shift = r.read_matrix<Eigen::MatrixXi>();
+  plan.tree.root = r.read<int>();
+  plan.tree.parent = r.read_vector<int>();
+  plan.tree.edge_cost = r.read_vector<double>();
+  plan.tree.depth = r.read_vector<int>();
+  plan.tree.order = r.read_vector<int>();
+  plan.median_edge = r.read<double>();
+  plan.branches = r.read<int>();
+  plan.job_of = r.read_vector<int>();
+  plan.seconds = r.read<double>();
+  const std::size_t n = plan.usable.size();
+  bool consistent = n > 0 && plan.distances.value.rows() == static_cast<Eigen::Index>(n) &&
+                    plan.distances.value.cols() == static_cast<Eigen::Index>(n) &&
+                    plan.distances.shift.rows() == static_cast<Eigen::Index>(n) &&
+                    plan.distances.shift.cols() == static_cast<Eigen::Index>(n) &&
+                    plan.tree.parent.size() == n && plan.tree.edge_cost.size() == n &&
+                    plan.tree.depth.size() == n && plan.job_of.size() == n &&
+                    plan.tree.root >= 0 && plan.tree.root < static_cast<int>(n) &&
+                    plan.branches >= 1;
+  for (int i : plan.usable) consistent = consistent && i >= 0 && i < static_cast<int>(plan.frames.size());
+  for (std::size_t k = 0; consistent && k < n; ++k) {
+    const int p = plan.tree.parent[k];
+    consistent = p >= -1 && p < static_cast<int>(n) && plan.job_of[k] >= -1 &&
+                 plan.job_of[k] < plan.branches;
+  }
+  if (!consistent) throw InputError(fmt::format("{}: inconsistent plan", file.string()));
+  plan.tree.children.assign(n, {});
+  for (std::size_t k = 0; k < n; ++k) {
+    if (plan.tree.parent[k] >= 0) plan.tree.children[plan.tree.parent[k]].push_back(static_cast<int>(k));
+  }
+  const Mesh template_mesh = read_ply(out / "template.ply");
+  *template_vertices = static_cast<int>(template_mesh.num_vertices());
+  *reg = Registrations(static_cast<int>(n));
+  read_results(r, plan, *reg, *template_vertices);
+  r.expect_end();
+  return plan;
+}
+
+// Cuts the tree into `branches` jobs of whole subtrees. The top of the tree (the root, and
+// nodes split further while there are fewer subtrees than jobs or one subtree is much larger
+// than a job's share, at most a tenth of the frames) is registered by the tree job; its
+// subtrees go to the least loaded job, largest first.
+std::vector<int> assign_branches(const ShapeTree& tree, int branches) {
+  const int n = static_cast<int>(tree.parent.size());
+  std::vector<int> size(n, 1);
+  for (auto it = tree.order.rbegin(); it != tree.order.rend(); ++it) {
+    if (tree.parent[*it] >= 0) size[tree.parent[*it]] += size[*it];
+  }
+  std::vector<int> job_of(n, -1);
+  std::vector<int> frontier = tree.children[tree.root];
+  int top = 1;
+  const int top_budget = std::max(1, n / 10);
+  const double share = static_cast<double>(n) / branches;
+  while (top < top_budget && !frontier.empty()) {
+    auto largest = std::max_element(frontier.begin(), frontier.end(),
+                                    [&](int a, int b) { return size[a] < size[b]; });
+    const bool too_few = static_cast<int>(frontier.size()) < branches;
+    if (size[*largest] <= 1 || (!too_few && size[*largest] <= 1.5 * share)) break;
+    const int node = *largest;
+    frontier.erase(largest);
+    ++top;
+    frontier.insert(frontier.end(), tree.children[node].begin(), tree.children[node].end());
+  }
+  std::sort(frontier.begin(), frontier.end(), [&](int a, int b) {
+    return size[a] != size[b] ? size[a] > size[b] : a < b;
+  });
+  std::vector<int> load(branches, 0);
+  for (int s : frontier) {
+    const int job = static_cast<int>(std::min_element(load.begin(), load.end()) - load.begin());
+    load[job] += size[s];
+    // The whole subtree of s.
+    std::vector<int> stack{s};
+    while (!stack.empty()) {
+      const int k = stack.back();
+      stack.pop_back();
+      job_of[k] = job;
+      stack.insert(stack.end(), tree.children[k].begin(), tree.children[k].end());
+    }
+  }
+  return job_of;
+}
+
+// Registers frames along the tree and keeps what happened (attempt) in `reg`.
+class TreeRegistration {
+ public:
+  TreeRegistration(const TemplateModel& model, Plan& plan, Registrations& reg,
+                   const AlignOptions& options, fs::path out)
+      : model_(model), plan_(plan), reg_(reg), options_(options), out_(std::move(out)) {}
+
+  fs::path frame_file(int k) const {
+    const FrameStatus& s = plan_.frames[plan_.usable[k]].status;
+    return out_ / s.take / (frame_name(s.frame) + ".ply");
+  }
+  void write_frame(int k) const {
+    write_ply(frame_file(k), fitted_mesh(model_, reg_.fits[k].state.positions));
+  }
+
+  // Registers database frame k from database frame p (-1: the template at rest); writes its
+  // mesh when the fit passes.
+  bool attempt(int k, int p) {
+    FrameData& f = plan_.frames[plan_.usable[k]];
+    reg_.tried[k].insert(p);
+    reg_.attempted[k] = 1;
+    Fit fit;
+    try {
+      if (p < 0) {
+        fit = register_frame(model_, rest_state(model_), nullptr, f, 0, options_);
+      } else {
+        fit = register_frame(model_, reg_.fits[p].state, &plan_.frames[plan_.usable[p]].descriptor,
+                             f, plan_.distances.shift(k, p), options_);
+      }
+    } catch (const SolverError& e) {
+      f.status.error = e.what();
+      return false;
+    }
+    const std::string failure = fit_failure(fit.stats, options_);
+    if (!failure.empty()) {
+      // Keep the best of the failed attempts (it may be kept, flagged, at the end).
+      if (!reg_.has_fit[k] || fit.stats.surface_rms < reg_.fits[k].stats.surface_rms) {
+        reg_.fits[k] = std::move(fit);
+        reg_.parent_of[k] = p;
+        reg_.has_fit[k] = 1;
+      }
+      f.status.error = failure;
+      return false;
+    }
+    reg_.fits[k] = std::move(fit);
+    reg_.has_fit[k] = 1;
+    reg_.parent_of[k] = p;
+    reg_.aligned[k] = 1;
+    f.status.error.clear();
+    write_frame(k);
+    return true;
+  }
+
+  // Registers the subtrees hanging from `starts` whose nodes belong to job `job`, each from
+  // its tree parent, independent subtrees in parallel; a failed frame's subtree is left to
+  // re-parenting (not attempted).
+  void register_subtrees(const std::vector<int>& starts, int job, log::Progress& progress) {
+    std::vector<int> start;
+    for (int k : starts) {
+      const int p = plan_.tree.parent[k];
+      if (p < 0 || reg_.aligned[p]) start.push_back(k);
+    }
+    tbb::parallel_for_each(start.begin(), start.end(), [&](int k, tbb::feeder<int>& feeder) {
+      if (attempt(k, plan_.tree.parent[k])) {
+        for (int c : plan_.tree.children[k]) {
+          if (plan_.job_of[c] == job) feeder.add(c);
+        }
+      }
+      progress.step();
+    });
+  }
+
+ private:
+  const TemplateModel& model_;
+  Plan& plan_;
+  Registrations& reg_;
+  const AlignOptions& options_;
+  fs::path out_;
+};
+
+std::uint64_t new_plan_id() {
+  std::random_device device;
+  return (static_cast<std::uint64_t>(device()) << 32) ^ device() ^
+         static_cast<std::uint64_t>(std::chrono::steady_clock::now().time_since_epoch().count());
+}
+
+// The tree job: pass 1 over every frame, the tree, the template, the plan of branch jobs, and
+// the registration of the tree's top.
+void run_tree_job(const fs::path& in, const fs::path& out, const StageArgs& args,
+                  const AlignOptions& options) {
+  log::Timer timer;
+  Plan plan;
+  plan.id = new_plan_id();
+  plan.options_yaml = options_text(options);
+  plan.branches = args.branches;
+  plan.frames = list_frames(in, args.selection);
+  std::vector<FrameData>& frames = plan.frames;
   log::info("align: {} frames from {}", frames.size(), in.string());
   inspect_frames(frames, options);
   for (const FrameData& f : frames) {
@@ -339,38 +688,38 @@ void run_align(const Session& session, const StageArgs& args) {
                 f.usable ? " (used anyway: exclude_non_manifold is off)" : " - excluded");
     }
   }
-  std::vector<int> usable;  // database index -> frame index
   for (std::size_t i = 0; i < frames.size(); ++i) {
-    if (frames[i].usable) usable.push_back(static_cast<int>(i));
+    if (frames[i].usable) plan.usable.push_back(static_cast<int>(i));
   }
-  if (usable.empty()) throw InputError(fmt::format("{}: no usable frame to align", in.string()));
+  if (plan.usable.empty()) throw InputError(fmt::format("{}: no usable frame to align", in.string()));
   check_one_character(frames, options.max_volume_ratio);
 
   // 1. Shape similarity and the tree.
   std::vector<ShapeDescriptor> descriptors;
-  for (int i : usable) descriptors.push_back(frames[i].descriptor);
+  for (int i : plan.usable) descriptors.push_back(frames[i].descriptor);
   log::Timer tree_timer;
-  const DistanceMatrix distances = pairwise_shape_distances(descriptors, options.descriptor);
-  const int forced_root = options.root.empty() ? -1 : find_root(frames, usable, options.root);
-  const ShapeTree tree = minimum_spanning_tree(distances.value, forced_root);
-  const int root = usable[tree.root];
-  log::info("shape tree over {} frames in {:.1f} s: root {}, depth {}", usable.size(),
+  plan.distances = pairwise_shape_distances(descriptors, options.descriptor);
+  const int forced_root = options.root.empty() ? -1 : find_root(frames, plan.usable, options.root);
+  plan.tree = minimum_spanning_tree(plan.distances.value, forced_root);
+  const ShapeTree& tree = plan.tree;
+  const int root = plan.usable[tree.root];
+  log::info("shape tree over {} frames in {:.1f} s: root {}, depth {}", plan.usable.size(),
             tree_timer.seconds(), frame_label(frames[root].status),
             *std::max_element(tree.depth.begin(), tree.depth.end()));
   std::vector<double> edges;
   for (std::size_t k = 0; k < tree.parent.size(); ++k) {
     if (tree.parent[k] >= 0) edges.push_back(tree.edge_cost[k]);
   }
-  double median_edge = 0;
   if (!edges.empty()) {
     std::nth_element(edges.begin(), edges.begin() + edges.size() / 2, edges.end());
-    median_edge = edges[edges.size() / 2];
+    plan.median_edge = edges[edges.size() / 2];
   }
+  plan.job_of = assign_branches(tree, plan.branches);
 
   // 2. The template.
   log::Timer template_timer;
-  const Mesh template_mesh =
-      remesh_to_vertex_count(load_frame(frames[root]), options.template_vertices, options.remesh_iterations);
+  const Mesh template_mesh = remesh_to_vertex_count(load_frame(frames[root]), options.template_vertices,
+                                                    options.remesh_iterations);
   ensure_directory(out);
   write_ply(out / "template.ply", template_mesh);
   // Every aligned frame is the template's topology: its file's size once per frame.
@@ -381,102 +730,121 @@ void run_align(const Session& session, const StageArgs& args) {
             template_mesh.num_vertices(), template_mesh.num_triangles(),
             model.graph.node_vertex.size(), template_timer.seconds());
 
-  // 3. Registration along the tree, independent branches in parallel.
-  const int n = static_cast<int>(usable.size());
-  std::vector<Fit> fits(n);
-  std::vector<char> aligned(n, 0), attempted(n, 0), has_fit(n, 0);
-  std::vector<int> parent_of(n, -1);  // database indices, as finally registered (or best tried)
-  std::vector<std::set<int>> tried(n);
-  std::set<fs::path> written;
-  std::mutex written_mutex;
-  auto write_frame = [&](int k) {
-    const FrameStatus& s = frames[usable[k]].status;
-    const fs::path file = out / s.take / (frame_name(s.frame) + ".ply");
-    write_ply(file, fitted_mesh(model, fits[k].state.positions));
-    std::lock_guard<std::mutex> lock(written_mutex);
-    written.insert(file);
-  };
-  // Registers database frame k from database frame p (-1: the template at rest).
-  auto attempt = [&](int k, int p) -> bool {
-    FrameData& f = frames[usable[k]];
-    tried[k].insert(p);
-    attempted[k] = 1;
-    Fit fit;
-    try {
-      if (p < 0) {
-        fit = register_frame(model, rest_state(model), nullptr, f, 0, options);
-      } else {
-        fit = register_frame(model, fits[p].state, &descriptors[p], f, distances.shift(k, p), options);
-      }
-    } catch (const SolverError& e) {
-      f.status.error = e.what();
-      return false;
-    }
-    const std::string failure = fit_failure(fit.stats, options);
-    if (!failure.empty()) {
-      // Keep the best of the failed attempts (it may be kept, flagged, at the end).
-      if (!has_fit[k] || fit.stats.surface_rms < fits[k].stats.surface_rms) {
-        fits[k] = std::move(fit);
-        parent_of[k] = p;
-        has_fit[k] = 1;
-      }
-      f.status.error = failure;
-      return false;
-    }
-    fits[k] = std::move(fit);
-    has_fit[k] = 1;
-    parent_of[k] = p;
-    aligned[k] = 1;
-    write_frame(k);
-    return true;
-  };
-
+  // 3. The top of the tree.
+  const int n = static_cast<int>(plan.usable.size());
+  int top = 0;
+  for (int j : plan.job_of) top += j < 0;
+  Registrations reg(n);
+  TreeRegistration registration(model, plan, reg, options, out);
   {
-    log::Progress progress("registering along the tree", n);
-    std::vector<int> start{tree.root};
-    tbb::parallel_for_each(start.begin(), start.end(), [&](int k, tbb::feeder<int>& feeder) {
-      if (attempt(k, tree.parent[k])) {
-        for (int c : tree.children[k]) feeder.add(c);
-      }
-      progress.step();
-    });
+    log::Progress progress("registering the top of the tree", top);
+    registration.register_subtrees({tree.root}, -1, progress);
   }
+  std::vector<int> load(plan.branches, 0);
+  for (int j : plan.job_of) {
+    if (j >= 0) ++load[j];
+  }
+  log::info("{} frames registered here; branch jobs: {} frames", top, fmt::join(load, ", "));
+  plan.seconds = timer.seconds();
+  save_plan(plan_file(out), plan, reg);
+}
+
+// Branch job `branch`: registers its subtrees from the top's fits.
+void run_branch_job(const fs::path& out, int branch, const AlignOptions& options) {
+  log::Timer timer;
+  Registrations reg(0);
+  int vertices = 0;
+  Plan plan = load_plan(out, options, &reg, &vertices);
+  if (branch >= plan.branches) {
+    throw UsageError(fmt::format("--branch {}: the plan has {} branch jobs (0 to {})", branch,
+                                 plan.branches, plan.branches - 1));
+  }
+  const TemplateModel model = build_template_model(read_ply(out / "template.ply"), options.registration);
+  std::vector<int> starts, mine;
+  const int n = static_cast<int>(plan.usable.size());
   for (int k = 0; k < n; ++k) {
-    FrameStatus& s = frames[usable[k]].status;
-    if (tree.parent[k] >= 0 && tree.edge_cost[k] > options.far_edge_factor * median_edge) {
+    if (plan.job_of[k] != branch) continue;
+    mine.push_back(k);
+    const int p = plan.tree.parent[k];
+    if (p >= 0 && plan.job_of[p] != branch) starts.push_back(k);
+  }
+  TreeRegistration registration(model, plan, reg, options, out);
+  {
+    log::Progress progress(fmt::format("branch job {} of {}", branch, plan.branches), mine.size());
+    registration.register_subtrees(starts, branch, progress);
+  }
+  BinaryWriter w;
+  w.write(plan.id);
+  w.write<int>(branch);
+  w.write(timer.seconds());
+  write_results(w, plan, reg, mine);
+  w.save(branch_file(out, branch), kBranchMagic, kJobFileVersion);
+}
+
+// The finish job: merges the branch jobs' results, re-parents and keeps what failed, runs the
+// baseline and writes the reports.
+void run_finish_job(const fs::path& out, const StageArgs& args, const AlignOptions& options) {
+  log::Timer timer;
+  Registrations reg(0);
+  int vertices = 0;
+  Plan plan = load_plan(out, options, &reg, &vertices);
+  double job_seconds = plan.seconds;
+  for (int b = 0; b < plan.branches; ++b) {
+    const fs::path file = branch_file(out, b);
+    if (!fs::is_regular_file(file)) {
+      throw InputError(fmt::format("{}: missing (run branch job {} first)", file.string(), b));
+    }
+    BinaryReader r = BinaryReader::open(file, kBranchMagic, {kJobFileVersion});
+    if (r.read<std::uint64_t>() != plan.id || r.read<int>() != b) {
+      throw InputError(fmt::format("{}: made from another plan than {} (rerun branch job {})",
+                                   file.string(), plan_file(out).string(), b));
+    }
+    job_seconds += r.read<double>();
+    read_results(r, plan, reg, vertices);
+    r.expect_end();
+  }
+  const Mesh template_mesh = read_ply(out / "template.ply");
+  const TemplateModel model = build_template_model(template_mesh, options.registration);
+  std::vector<FrameData>& frames = plan.frames;
+  const ShapeTree& tree = plan.tree;
+  const int n = static_cast<int>(plan.usable.size());
+  const int root = plan.usable[tree.root];
+  for (int k = 0; k < n; ++k) {
+    FrameStatus& s = frames[plan.usable[k]].status;
+    if (tree.parent[k] >= 0 && tree.edge_cost[k] > options.far_edge_factor * plan.median_edge) {
       s.flags.push_back("far_from_parent");
     }
-    if (attempted[k] && !aligned[k]) s.flags.push_back("registration_failed");
-    if (!attempted[k]) s.flags.push_back("orphaned");
+    if (reg.attempted[k] && !reg.aligned[k]) s.flags.push_back("registration_failed");
+    if (!reg.attempted[k]) s.flags.push_back("orphaned");
   }
-  if (!aligned[tree.root]) {
+  if (!reg.aligned[tree.root]) {
     throw SolverError(fmt::format("align: the template does not fit its own frame {}: {}",
                                   frame_label(frames[root].status), frames[root].status.error));
   }
 
   // 4. Re-parenting: every frame not aligned yet (its fit failed, or its parent's did) is
   //    registered from the most similar aligned frame it has not tried, best pairs first.
+  TreeRegistration registration(model, plan, reg, options, out);
   for (;;) {
     int best_k = -1, best_p = -1;
     double best = std::numeric_limits<double>::infinity();
     for (int k = 0; k < n; ++k) {
-      if (aligned[k]) continue;
-      const int failures = static_cast<int>(tried[k].size());
+      if (reg.aligned[k]) continue;
+      const int failures = static_cast<int>(reg.tried[k].size());
       if (failures > options.reparent_attempts) continue;
       for (int p = 0; p < n; ++p) {
-        if (aligned[p] && !tried[k].count(p) && distances.value(k, p) < best) {
-          best = distances.value(k, p);
+        if (reg.aligned[p] && !reg.tried[k].count(p) && plan.distances.value(k, p) < best) {
+          best = plan.distances.value(k, p);
           best_k = k;
           best_p = p;
         }
       }
     }
     if (best_k < 0) break;
-    FrameStatus& s = frames[usable[best_k]].status;
-    if (attempt(best_k, best_p)) {
-      s.error.clear();
+    FrameStatus& s = frames[plan.usable[best_k]].status;
+    if (registration.attempt(best_k, best_p)) {
       s.flags.push_back("reparented");
-      log::info("{}: re-parented to {}", frame_label(s), frame_label(frames[usable[best_p]].status));
+      log::info("{}: re-parented to {}", frame_label(s), frame_label(frames[plan.usable[best_p]].status));
     }
   }
 
@@ -484,31 +852,34 @@ void run_align(const Session& session, const StageArgs& args) {
   //    motion stays complete for the stages after this one, and the report and validation show
   //    the frame's error); with keep_failed_fits off they are excluded.
   std::vector<char> kept(n, 0);
-  if (options.keep_failed_fits) {
-    for (int k = 0; k < n; ++k) {
-      if (aligned[k] || !has_fit[k]) continue;
+  std::set<fs::path> written;
+  for (int k = 0; k < n; ++k) {
+    if (reg.aligned[k]) {
+      written.insert(registration.frame_file(k));
+    } else if (options.keep_failed_fits && reg.has_fit[k]) {
       kept[k] = 1;
-      frames[usable[k]].status.flags.push_back("kept_failed_fit");
-      write_frame(k);
+      frames[plan.usable[k]].status.flags.push_back("kept_failed_fit");
+      registration.write_frame(k);
+      written.insert(registration.frame_file(k));
     }
   }
 
   // Statuses for the report.
   for (int k = 0; k < n; ++k) {
-    FrameStatus& s = frames[usable[k]].status;
-    s.aligned = aligned[k] || kept[k];
-    s.fit = fits[k].stats;
-    s.seconds = fits[k].seconds;
-    if (aligned[k] || kept[k]) {
-      const int p = parent_of[k];
-      s.parent = p >= 0 ? usable[p] : -1;
-      s.parent_distance = p >= 0 ? distances.value(k, p) : 0.0;
+    FrameStatus& s = frames[plan.usable[k]].status;
+    s.aligned = reg.aligned[k] || kept[k];
+    s.fit = reg.fits[k].stats;
+    s.seconds = reg.fits[k].seconds;
+    if (s.aligned) {
+      const int p = reg.parent_of[k];
+      s.parent = p >= 0 ? plan.usable[p] : -1;
+      s.parent_distance = p >= 0 ? plan.distances.value(k, p) : 0.0;
     } else if (s.error.empty()) {
       s.error = "its parent could not be aligned and no other parent fitted";
     }
   }
   for (int k = 0; k < n; ++k) {  // depth along the parents actually used
-    FrameStatus& s = frames[usable[k]].status;
+    FrameStatus& s = frames[plan.usable[k]].status;
     int depth = 0;
     for (int p = s.parent; p >= 0 && depth <= n; p = frames[p].status.parent) ++depth;
     if (s.aligned) s.depth = depth;
@@ -521,7 +892,7 @@ void run_align(const Session& session, const StageArgs& args) {
     }
   }
 
-  // 5. The baseline.
+  // 6. The baseline.
   json sequential;
   if (options.sequential_baseline) {
     sequential = run_sequential(model, frames[root].descriptor, frames, options, out / "sequential");
@@ -529,7 +900,7 @@ void run_align(const Session& session, const StageArgs& args) {
 
   // Outputs.
   remove_stale_frames(out, written);
-  const double seconds = total_timer.seconds();
+  const double seconds = job_seconds + timer.seconds();
   int aligned_count = 0, flagged_count = 0;
   double rms_sum = 0;
   int flipped = 0;
@@ -576,18 +947,40 @@ void run_align(const Session& session, const StageArgs& args) {
                  {"template_vertices", template_mesh.num_vertices()},
                  {"surface_rms_mm", aligned_count ? 1e3 * std::sqrt(rms_sum / aligned_count) : 0.0},
                  {"flipped_triangles", flipped},
+                 {"branch_jobs", plan.branches},
                  {"seconds", seconds},
                  {"seconds_per_frame", seconds / static_cast<double>(frames.size())},
                  {"per_frame", per_frame}};
   if (options.sequential_baseline) report["sequential"] = sequential;
   write_file_atomic(out / "report.json", report.dump(1) + "\n");
-  YAML::Emitter yaml;
-  yaml << to_yaml(options);
-  write_file_atomic(out / "options.yaml", std::string(yaml.c_str()) + "\n");
+  write_file_atomic(out / "options.yaml", options_text(options));
   log::info("aligned {} of {} frames ({} of them kept despite a failed fit, flagged), surface rms "
             "{:.2f} mm, {} flipped triangles, {:.2f} s per frame",
             aligned_count, frames.size(), flagged_count, report["surface_rms_mm"].get<double>(), flipped,
             seconds / static_cast<double>(frames.size()));
+}
+
+}  // namespace
+
+void run_align(const Session& session, const StageArgs& args) {
+  AlignOptions options;
+  session.stage_options("align", options);
+  const fs::path in = stage_input_dir(session, args, "reconstruct");
+  const fs::path out = stage_output_dir(session, args, "align");
+  if (args.tree) {
+    run_tree_job(in, out, args, options);
+  } else if (args.branch >= 0) {
+    run_branch_job(out, args.branch, options);
+  } else if (args.finish) {
+    run_finish_job(out, args, options);
+  } else {
+    // The whole stage in one process: the same jobs, one after the other.
+    StageArgs whole = args;
+    whole.branches = 1;
+    run_tree_job(in, out, whole, options);
+    run_branch_job(out, 0, options);
+    run_finish_job(out, args, options);
+  }
 }
 
 }  // namespace fourd::align

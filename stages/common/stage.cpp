@@ -49,6 +49,12 @@ std::filesystem::path stage_output_dir(const Session& session, const StageArgs& 
   return session.dir(args.oracle ? stage + "_oracle" : stage);
 }
 
+std::string tree_job_part(const StageArgs& args) {
+  if (args.tree) return "tree";
+  if (args.branch >= 0) return "branch" + std::to_string(args.branch);
+  return {};
+}
+
 int run_stage_main(int argc, char** argv, const StageInfo& info,
                    const std::function<void(CLI::App&)>& add_options,
                    const std::function<void(const Session&, const StageArgs&)>& body) {
@@ -64,7 +70,16 @@ int run_stage_main(int argc, char** argv, const StageInfo& info,
                    "process only frames FIRST:LAST (inclusive; comma-separated ranges, which must "
                    "not overlap)");
   }
-  if (info.has_finish_job) {
+  if (info.tree_jobs) {
+    app.add_flag("--tree", args.tree,
+                 "the first job: build the tree over all frames and plan --branches branch jobs");
+    app.add_option("--branches", args.branches, "branch jobs the --tree job plans")
+        ->check(CLI::Range(1, 100000));
+    app.add_option("--branch", args.branch,
+                   "register the frames of branch job K (0-based) of the plan the --tree job wrote")
+        ->check(CLI::NonNegativeNumber);
+  }
+  if (info.has_finish_job || info.tree_jobs) {
     app.add_flag("--finish", args.finish,
                  "after jobs that each did a --take/--frames range: process no frame, check "
                  "that every frame's output exists and write the stage's reports");
@@ -113,10 +128,16 @@ int run_stage_main(int argc, char** argv, const StageInfo& info,
     if (args.finish && !args.selection.whole()) {
       throw UsageError("--finish processes no frame: it takes no --take/--frames");
     }
+    if (int(args.tree) + int(args.branch >= 0) + int(args.finish) > 1) {
+      throw UsageError("--tree, --branch and --finish are different jobs: give one of them");
+    }
+    if (args.branch >= 0 && !args.selection.whole()) {
+      throw UsageError("--branch takes its frames from the plan: no --take/--frames");
+    }
     Session session = Session::open(args.session_dir);
     log::open_file(session.logs_dir() /
                    job_log_name(std::string(info.name) + (args.oracle ? "_oracle" : ""),
-                                args.selection));
+                                args.selection, tree_job_part(args)));
     log::info("fourd-{} on {}", info.name, session.root().string());
     log::Timer timer;
     body(session, args);

@@ -23,6 +23,11 @@ struct StageArgs {
   // --finish: the last job of a stage split into frame-range jobs: no frame is processed; the
   // stage checks that every frame's output exists and writes its reports from them.
   bool finish = false;
+  // Stages split along a tree of frames (StageInfo::tree_jobs: align): --tree builds the tree
+  // and the plan of `branches` branch jobs; --branch K registers branch K; --finish merges.
+  bool tree = false;
+  int branches = 1;
+  int branch = -1;
   int threads = 0;     // 0: all cores
   bool verbose = false;
 };
@@ -54,7 +59,13 @@ struct StageInfo {
   std::vector<OptionsSection> options;
   // Accepts --finish (a per-frame stage split into jobs by the driver or a workflow).
   bool has_finish_job = false;
+  // Runs as a tree job, branch jobs and a finish job (--tree/--branches, --branch, --finish).
+  bool tree_jobs = false;
 };
+
+// The job part a tree-split stage's job names its log after: "tree", "branch<K>", or "" (the
+// finish job, or a stage run whole).
+std::string tree_job_part(const StageArgs& args);
 
 // Folder a stage reads the outputs of `input_stage` from: <session>/<input_stage>; in oracle
 // mode <session>/oracle/<input_stage> (made from ground truth by `fourd-validate

@@ -98,16 +98,39 @@ TEST(StageJobs, PerFrameStagesSplitIntoRangesOfEachTakeThenFinish) {
   EXPECT_EQ(per_take[2].log_name(), "segment.log");
 
   StageSpec single;
-  single.name = "align";
-  single.outputs = {"align"};
+  single.name = "timewarp";
+  single.outputs = {"timewarp"};
   const std::vector<Job> one = stage_jobs(single, two_takes(), 4);
   ASSERT_EQ(one.size(), 1u);
   EXPECT_TRUE(one[0].arguments().empty());
-  EXPECT_EQ(one[0].name(), "align");
+  EXPECT_EQ(one[0].name(), "timewarp");
   EXPECT_THROW(stage_jobs(per_frame_stage(), two_takes(), -1), UsageError);
   EXPECT_TRUE(stage_table()[1].per_frame());   // segment
   EXPECT_TRUE(stage_table()[2].per_frame());   // reconstruct
-  EXPECT_FALSE(stage_table()[3].per_frame());  // align: one job (its tree spans every frame)
+  EXPECT_FALSE(stage_table()[3].per_frame());  // align: split along its tree, not by frames
+  EXPECT_TRUE(stage_table()[3].tree_split);
+}
+
+TEST(StageJobs, TreeSplitStageRunsAsTreeBranchesAndFinish) {
+  const StageSpec& align = stage_table()[3];
+  ASSERT_EQ(align.name, "align");
+  const std::vector<Job> jobs = stage_jobs(align, two_takes(), 4, 3);
+  std::vector<std::string> names, logs;
+  for (const Job& j : jobs) {
+    names.push_back(j.name());
+    logs.push_back(j.log_name());
+  }
+  EXPECT_EQ(names, (std::vector<std::string>{"align.tree", "align.branch0", "align.branch1",
+                                             "align.branch2", "align.finish"}));
+  EXPECT_EQ(logs, (std::vector<std::string>{"align.tree.log", "align.branch0.log",
+                                            "align.branch1.log", "align.branch2.log",
+                                            "align.log"}));
+  EXPECT_EQ(jobs[0].arguments(), (std::vector<std::string>{"--tree", "--branches", "3"}));
+  EXPECT_EQ(jobs[2].arguments(), (std::vector<std::string>{"--branch", "1"}));
+  EXPECT_EQ(jobs[4].arguments(), (std::vector<std::string>{"--finish"}));
+  EXPECT_EQ(jobs[0].tree_job_file("align"), "align/.jobs/plan.bin");
+  EXPECT_EQ(jobs[3].tree_job_file("align_oracle"), "align_oracle/.jobs/branch2.bin");
+  EXPECT_THROW(stage_jobs(align, two_takes(), 4, 0), UsageError);
 }
 
 // A session with a small real capture (two cameras, takes of 5 and 2 frames) and fake stage

@@ -1,0 +1,157 @@
+// The align stage as jobs: a tree job, branch jobs and a finish job give the same meshes as the
+// stage run whole, whatever the number of branch jobs; jobs refuse a missing or stale plan.
+#include "stages/align/align.h"
+
+#include <gtest/gtest.h>
+#include <stdlib.h>
+
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+
+#include "pipeline/core/error.h"
+#include "pipeline/core/files.h"
+#include "pipeline/core/mesh_io.h"
+#include "tests/align/align_test_data.h"
+
+namespace fourd::align {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A session whose reconstruct/ holds two takes of a walking capsule figure, each frame with
+// fresh connectivity; small template and graph so the test stays quick.
+class AlignSession {
+ public:
+  AlignSession() {
+    std::string pattern = (fs::temp_directory_path() / "fourd_align_session_XXXXXX").string();
+    if (::mkdtemp(pattern.data()) == nullptr) throw std::runtime_error("mkdtemp failed");
+    root_ = pattern;
+    write_config("");
+    const test::Figure figure = test::make_figure(0.02);
+    const std::map<std::string, std::vector<double>> takes = {
+        {"walk_a", {0.0, 0.5, 1.0, 1.5, 2.0}}, {"walk_b", {3.0, 3.6, 4.2, 4.8}}};
+    for (const auto& [take, phases] : takes) {
+      for (std::size_t f = 0; f < phases.size(); ++f) {
+        const Mesh posed = test::pose_figure(figure, test::walk_pose(figure, phases[f], 0.05 * f));
+        const Mesh frame = test::remesh_fresh(posed, 0.02, {0.003 * f, 0.002, 0.001});
+        write_ply(root_ / "reconstruct" / take / fmt::format("{:06d}.ply", f), frame);
+      }
+    }
+  }
+  ~AlignSession() {
+    std::error_code ec;
+    fs::remove_all(root_, ec);
+  }
+  AlignSession(const AlignSession&) = delete;
+  AlignSession& operator=(const AlignSession&) = delete;
+
+  void write_config(const std::string& registration_extra) {
+    std::ofstream out(root_ / "session.yaml", std::ios::trunc);
+    out << "name: align_test\nfps: 12\nmotions:\n"
+           "  - {name: walk, takes: [walk_a, walk_b], parameter: speed, cyclic: true}\n"
+           "stages:\n  align:\n    template_vertices: 600\n    remesh_iterations: 3\n"
+           "    registration: {graph_nodes: 60, iterations_per_level: 3, refine_iterations: 2"
+        << registration_extra << "}\n";
+  }
+
+  const fs::path& root() const { return root_; }
+  fs::path out() const { return root_ / "align"; }
+
+  void run(StageArgs args) const {
+    args.session_dir = root_.string();
+    run_align(Session::open(root_), args);
+  }
+
+ private:
+  fs::path root_;
+};
+
+StageArgs tree_job(int branches) {
+  StageArgs a;
+  a.tree = true;
+  a.branches = branches;
+  return a;
+}
+StageArgs branch_job(int k) {
+  StageArgs a;
+  a.branch = k;
+  return a;
+}
+StageArgs finish_job() {
+  StageArgs a;
+  a.finish = true;
+  return a;
+}
+
+// Every aligned mesh (and the template), by path relative to align/.
+std::map<std::string, std::string> meshes(const fs::path& dir) {
+  std::map<std::string, std::string> out;
+  for (const auto& e : fs::recursive_directory_iterator(dir)) {
+    if (e.is_regular_file() && e.path().extension() == ".ply") {
+      out[fs::relative(e.path(), dir).string()] = read_file(e.path());
+    }
+  }
+  return out;
+}
+
+TEST(AlignStage, BranchJobsGiveTheSameMeshesAsTheWholeStage) {
+  AlignSession whole;
+  whole.run(StageArgs{});
+  const auto expected = meshes(whole.out());
+  ASSERT_EQ(expected.size(), 10u);  // template + 9 frames
+
+  AlignSession split;
+  split.run(tree_job(3));
+  ASSERT_TRUE(fs::exists(split.out() / ".jobs" / "plan.bin"));
+  for (int k : {2, 0, 1}) split.run(branch_job(k));  // any order: branches are independent
+  split.run(finish_job());
+  const auto got = meshes(split.out());
+  ASSERT_EQ(got.size(), expected.size());
+  for (const auto& [file, bytes] : expected) {
+    ASSERT_TRUE(got.count(file)) << file;
+    EXPECT_EQ(got.at(file), bytes) << file << " differs between the whole stage and 3 branch jobs";
+  }
+  const auto report = nlohmann::json::parse(read_file(split.out() / "report.json"));
+  EXPECT_EQ(report["aligned"].get<int>(), 9);
+  EXPECT_EQ(report["branch_jobs"].get<int>(), 3);
+  const auto tree_a = nlohmann::json::parse(read_file(whole.out() / "tree.json"));
+  const auto tree_b = nlohmann::json::parse(read_file(split.out() / "tree.json"));
+  EXPECT_EQ(tree_a["nodes"], tree_b["nodes"]);
+}
+
+TEST(AlignStage, JobsRefuseAMissingOrStalePlan) {
+  AlignSession s;
+  EXPECT_THROW(s.run(branch_job(0)), InputError);  // no plan yet
+  s.run(tree_job(2));
+  EXPECT_THROW(s.run(branch_job(2)), UsageError);  // the plan has branches 0 and 1
+  s.run(branch_job(0));
+  try {
+    s.run(finish_job());  // branch 1 has not run
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("branch1.bin"), std::string::npos) << e.what();
+  }
+  s.write_config(", stiffness: [2, 0.5]");  // options changed after the tree job
+  try {
+    s.run(branch_job(1));
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("--tree"), std::string::npos) << e.what();
+  }
+  s.write_config("");
+  s.run(tree_job(2));  // a new plan: branch results of the old one must not be merged
+  s.run(branch_job(0));
+  s.run(branch_job(1));
+  s.run(tree_job(2));
+  s.run(branch_job(0));
+  try {
+    s.run(finish_job());
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("another plan"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace fourd::align
