@@ -51,6 +51,8 @@ class AlignSession {
     out << "name: align_test\nfps: 12\nmotions:\n"
            "  - {name: walk, takes: [walk_a, walk_b], parameter: speed, cyclic: true}\n"
            "stages:\n  align:\n    template_vertices: 600\n    remesh_iterations: 3\n"
+           // A coarse template of a coarse figure: accept its fits (this test is about jobs).
+           "    max_surface_rms: 0.1\n    max_uncovered_fraction: 0.5\n"
            "    registration: {graph_nodes: 60, iterations_per_level: 3, refine_iterations: 2"
         << registration_extra << "}\n";
   }
