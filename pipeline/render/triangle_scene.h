@@ -8,7 +8,7 @@
 
 #include "pipeline/core/mesh.h"
 
-namespace fourd::texture {
+namespace fourd {
 
 struct SceneHit {
   int face = -1;                                     // -1: the ray misses
@@ -35,4 +35,4 @@ class TriangleScene {
   std::unique_ptr<Impl> impl_;
 };
 
-}  // namespace fourd::texture
+}  // namespace fourd
