@@ -140,6 +140,10 @@ struct CharacterFrame {
   BlendedFrame normals;    // root frame, planes x | y | z
   RootTransform root;      // world pose of the root
   float fade_weight = 1;   // weight of the current space (1 outside a cross-fade)
+  // The key textures to blend and their weights (runtime/textures.h), with the geometry's input
+  // weights and cross-fade; count 0 when the asset has no textures. blend_texture_image()
+  // turns it into the frame's texture on the CPU.
+  TextureBlend textures;
 };
 
 class Character {
