@@ -97,6 +97,34 @@ void write_textures(BinaryWriter& w, const AssetTextures& t) {
   }
 }
 
+// The image size a JPEG file announces in its frame header (SOFn), read before decoding so a
+// corrupt file cannot make the decoder allocate more than the asset announces. False when the
+// bytes are not a JPEG or have no frame header.
+bool jpeg_size(const std::vector<std::uint8_t>& b, int* width, int* height) {
+  if (b.size() < 4 || b[0] != 0xFF || b[1] != 0xD8) return false;
+  std::size_t i = 2;
+  while (i + 4 <= b.size()) {
+    if (b[i] != 0xFF) return false;
+    const std::uint8_t marker = b[i + 1];
+    if (marker == 0xFF) {  // fill byte
+      ++i;
+      continue;
+    }
+    const std::size_t length = (static_cast<std::size_t>(b[i + 2]) << 8) | b[i + 3];
+    const bool sof = marker >= 0xC0 && marker <= 0xCF && marker != 0xC4 && marker != 0xC8 &&
+                     marker != 0xCC;
+    if (sof) {
+      if (length < 7 || i + 9 > b.size()) return false;
+      *height = (b[i + 5] << 8) | b[i + 6];
+      *width = (b[i + 7] << 8) | b[i + 8];
+      return true;
+    }
+    if (marker == 0xD9 || marker == 0xDA || length < 2) return false;  // no frame header
+    i += 2 + length;
+  }
+  return false;
+}
+
 AssetTextures read_textures(BinaryReader& r, std::size_t spaces) {
   AssetTextures t;
   if (r.read<std::uint8_t>() == 0) return t;
@@ -127,9 +155,18 @@ AssetTextures read_textures(BinaryReader& r, std::size_t spaces) {
   }
   for (std::uint64_t k = 0; k < images; ++k) {
     const std::vector<std::uint8_t> bytes = r.read_vector<std::uint8_t>();
+    int w = 0, h = 0;
+    if (!jpeg_size(bytes, &w, &h)) {
+      throw InputError(fmt::format("{}: key texture {} of {} is not a JPEG image ({} bytes)",
+                                   file, k, images, bytes.size()));
+    }
+    if (w != t.width || h != t.height) {
+      throw InputError(fmt::format("{}: key texture {} is {} x {}, the asset announces {} x {}",
+                                   file, k, w, h, t.width, t.height));
+    }
     cv::Mat image;
     try {
-      if (!bytes.empty()) image = cv::imdecode(bytes, cv::IMREAD_COLOR);
+      image = cv::imdecode(bytes, cv::IMREAD_COLOR);
     } catch (const cv::Exception&) {
       image.release();
     }
