@@ -251,4 +251,14 @@ inline void add_test_textures(MotionGraph* graph, int keys = 4, int size = 32) {
   graph->check();
 }
 
+// The test graph (locomotion <-> jump_length) with 4 key textures of 32 x 32 texels per input.
+inline const MotionGraph& textured_test_graph() {
+  static const MotionGraph g = [] {
+    MotionGraph graph = make_test_graph();
+    add_test_textures(&graph, 4, 32);
+    return graph;
+  }();
+  return g;
+}
+
 }  // namespace fourd::test

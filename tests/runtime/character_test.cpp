@@ -345,11 +345,7 @@ TEST(RuntimeCharacter, StepsAllocateNothing) {
 // With textures the frame also lists the key textures to blend, and the CPU blend into a
 // kept image allocates nothing either.
 TEST(RuntimeCharacter, TexturedStepsAndTheirBlendAllocateNothing) {
-  static const MotionGraph g = [] {
-    MotionGraph graph = test::make_test_graph();
-    test::add_test_textures(&graph, 4, 32);
-    return graph;
-  }();
+  const MotionGraph& g = test::textured_test_graph();
   Character c(g, TransitionOptions{});
   c.reset(g.find_space("locomotion"), 1.2, 0.0);
   cv::Mat texture;

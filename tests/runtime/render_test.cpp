@@ -52,14 +52,7 @@ class PlayerRenderTest : public ::testing::Test {
   bool textured_ = false;
 };
 
-const MotionGraph& textured_graph() {
-  static const MotionGraph g = [] {
-    MotionGraph graph = test::make_test_graph();
-    test::add_test_textures(&graph, 4, 32);
-    return graph;
-  }();
-  return g;
-}
+const MotionGraph& textured_graph() { return test::textured_test_graph(); }
 
 TEST_F(PlayerRenderTest, FollowCameraKeepsTheTexturedCharacterCentred) {
   RenderOptions o;

@@ -17,14 +17,7 @@
 namespace fourd {
 namespace {
 
-const MotionGraph& textured_graph() {
-  static const MotionGraph g = [] {
-    MotionGraph graph = test::make_test_graph();
-    test::add_test_textures(&graph, 4, 32);
-    return graph;
-  }();
-  return g;
-}
+const MotionGraph& textured_graph() { return test::textured_test_graph(); }
 
 double weight_sum(const TextureBlend& b) {
   double sum = 0;
