@@ -240,9 +240,12 @@ inline void add_test_textures(MotionGraph* graph, int keys = 4, int size = 32) {
       cv::Mat image(size, size, CV_8UC3);
       for (int y = 0; y < size; ++y) {
         for (int x = 0; x < size; ++x) {
-          image.at<cv::Vec3b>(y, x) = cv::Vec3b(static_cast<std::uint8_t>((37 * id + 5 * x) % 256),
-                                                static_cast<std::uint8_t>((11 * id + 7 * y) % 256),
-                                                static_cast<std::uint8_t>((29 * id + 3 * (x + y)) % 256));
+          // Smooth (as JPEG keeps them well) and distinct: a red level of its own per image.
+          const double a = 2 * std::numbers::pi * (static_cast<double>(x) / size + 0.13 * id);
+          const double b = 2 * std::numbers::pi * (static_cast<double>(y) / size + 0.29 * id);
+          image.at<cv::Vec3b>(y, x) = cv::Vec3b(static_cast<std::uint8_t>(128 + 90 * std::sin(a)),
+                                                static_cast<std::uint8_t>(128 + 90 * std::cos(b)),
+                                                static_cast<std::uint8_t>(20 + (47 * id) % 216));
         }
       }
       t.images.push_back(image);
