@@ -27,7 +27,8 @@
 // Outputs in the output folder: meshes/frame_NNNNN.ply (world coordinates, normals; every
 // `mesh_every` frame), frames.csv (one row per frame: state, root, cross-fade, events, search
 // time), transitions.jsonl (one JSON object per transition: request / switch / arrival times,
-// latency, E_S, E_L, path), summary.json.
+// latency, E_S, E_L, path), summary.json. A FrameObserver sees every frame: fourd-play's
+// --render draws them (runtime/player/render.h).
 #include <filesystem>
 #include <limits>
 #include <string>
