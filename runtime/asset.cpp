@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <cstdint>
+#include <opencv2/imgcodecs.hpp>
 
 #include "pipeline/core/binary_format.h"
 #include "pipeline/core/error.h"
@@ -17,6 +18,7 @@ constexpr FileMagic kAssetMagic("FOURDAS");
 // allocation (the reader also checks every array against the bytes left).
 constexpr std::uint64_t kMaxSpaces = 1024;
 constexpr std::uint64_t kMaxEdges = 1024 * 1024;
+constexpr std::uint64_t kMaxTextureImages = 1 << 16;
 
 void write_floats(BinaryWriter& w, const AlignedFloats& values) {
   w.write_span(std::span<const float>(values.data(), values.size()));
@@ -76,6 +78,111 @@ GraphEdge read_edge(BinaryReader& r) {
   return e;
 }
 
+void write_textures(BinaryWriter& w, const AssetTextures& t) {
+  w.write<std::uint8_t>(t.empty() ? 0 : 1);
+  if (t.empty()) return;
+  w.write<std::int32_t>(t.width);
+  w.write<std::int32_t>(t.height);
+  w.write<std::int32_t>(t.jpeg_quality);
+  w.write_vector(t.corner_uvs);
+  w.write<std::uint64_t>(t.spaces.size());
+  for (const SpaceTextures& s : t.spaces) w.write<std::int32_t>(s.keys);
+  w.write<std::uint64_t>(t.images.size());
+  std::vector<std::uint8_t> bytes;
+  for (std::size_t k = 0; k < t.images.size(); ++k) {
+    if (!cv::imencode(".jpg", t.images[k], bytes, {cv::IMWRITE_JPEG_QUALITY, t.jpeg_quality})) {
+      throw IoError(fmt::format("asset: key texture {} cannot be encoded as JPEG", k));
+    }
+    w.write_vector(bytes);
+  }
+}
+
+// The image size a JPEG file announces in its frame header (SOFn), read before decoding so a
+// corrupt file cannot make the decoder allocate more than the asset announces. False when the
+// bytes are not a JPEG or have no frame header.
+bool jpeg_size(const std::vector<std::uint8_t>& b, int* width, int* height) {
+  if (b.size() < 4 || b[0] != 0xFF || b[1] != 0xD8) return false;
+  std::size_t i = 2;
+  while (i + 4 <= b.size()) {
+    if (b[i] != 0xFF) return false;
+    const std::uint8_t marker = b[i + 1];
+    if (marker == 0xFF) {  // fill byte
+      ++i;
+      continue;
+    }
+    const std::size_t length = (static_cast<std::size_t>(b[i + 2]) << 8) | b[i + 3];
+    const bool sof = marker >= 0xC0 && marker <= 0xCF && marker != 0xC4 && marker != 0xC8 &&
+                     marker != 0xCC;
+    if (sof) {
+      if (length < 7 || i + 9 > b.size()) return false;
+      *height = (b[i + 5] << 8) | b[i + 6];
+      *width = (b[i + 7] << 8) | b[i + 8];
+      return true;
+    }
+    if (marker == 0xD9 || marker == 0xDA || length < 2) return false;  // no frame header
+    i += 2 + length;
+  }
+  return false;
+}
+
+AssetTextures read_textures(BinaryReader& r, std::size_t spaces) {
+  AssetTextures t;
+  if (r.read<std::uint8_t>() == 0) return t;
+  const std::string file = r.path().string();
+  t.width = r.read<std::int32_t>();
+  t.height = r.read<std::int32_t>();
+  t.jpeg_quality = r.read<std::int32_t>();
+  if (t.width < 1 || t.height < 1 || t.width > 16384 || t.height > 16384) {
+    throw InputError(fmt::format("{}: textures of {} x {} texels", file, t.width, t.height));
+  }
+  t.corner_uvs = r.read_vector<Vec2f>();
+  const auto count = r.read<std::uint64_t>();
+  if (count != spaces) {
+    throw InputError(fmt::format("{}: key textures for {} spaces, the graph has {}", file, count,
+                                 spaces));
+  }
+  for (std::uint64_t s = 0; s < count; ++s) {
+    SpaceTextures st;
+    st.keys = r.read<std::int32_t>();  // `first` follows from the inputs: set by load_asset
+    if (st.keys < 0 || st.keys > 4096) {
+      throw InputError(fmt::format("{}: space {} announces {} key textures", file, s, st.keys));
+    }
+    t.spaces.push_back(st);
+  }
+  const auto images = r.read<std::uint64_t>();
+  if (images > kMaxTextureImages) {
+    throw InputError(fmt::format("{}: {} key textures announced", file, images));
+  }
+  for (std::uint64_t k = 0; k < images; ++k) {
+    const std::vector<std::uint8_t> bytes = r.read_vector<std::uint8_t>();
+    int w = 0, h = 0;
+    if (!jpeg_size(bytes, &w, &h)) {
+      throw InputError(fmt::format("{}: key texture {} of {} is not a JPEG image ({} bytes)",
+                                   file, k, images, bytes.size()));
+    }
+    if (w != t.width || h != t.height) {
+      throw InputError(fmt::format("{}: key texture {} is {} x {}, the asset announces {} x {}",
+                                   file, k, w, h, t.width, t.height));
+    }
+    cv::Mat image;
+    try {
+      image = cv::imdecode(bytes, cv::IMREAD_COLOR);
+    } catch (const cv::Exception&) {
+      image.release();
+    }
+    if (image.empty()) {
+      throw InputError(fmt::format("{}: key texture {} of {} is not a decodable image ({} bytes)",
+                                   file, k, images, bytes.size()));
+    }
+    if (image.cols != t.width || image.rows != t.height) {
+      throw InputError(fmt::format("{}: key texture {} is {} x {}, the asset announces {} x {}",
+                                   file, k, image.cols, image.rows, t.width, t.height));
+    }
+    t.images.push_back(image);
+  }
+  return t;
+}
+
 }  // namespace
 
 void save_asset(const std::filesystem::path& path, const Asset& asset) {
@@ -101,11 +208,12 @@ void save_asset(const std::filesystem::path& path, const Asset& asset) {
   for (const GraphSpace& s : g.spaces) write_space(w, s);
   w.write<std::uint64_t>(g.edges.size());
   for (const GraphEdge& e : g.edges) write_edge(w, e);
+  write_textures(w, g.textures);
   w.save(path, kAssetMagic, kAssetVersion);
 }
 
 Asset load_asset(const std::filesystem::path& path) {
-  BinaryReader r = BinaryReader::open(path, kAssetMagic, {kAssetVersion});
+  BinaryReader r = BinaryReader::open(path, kAssetMagic, {2, kAssetVersion});
   Asset asset;
   MotionGraph& g = asset.graph;
   g.name = r.read_string();
@@ -128,6 +236,15 @@ Asset load_asset(const std::filesystem::path& path) {
     throw InputError(fmt::format("{}: {} edges announced", path.string(), edges));
   }
   for (std::uint64_t k = 0; k < edges; ++k) g.edges.push_back(read_edge(r));
+  if (r.version() >= 3) {
+    g.textures = read_textures(r, g.spaces.size());
+    // Image offsets from the spaces' input counts (the file stores only the key counts).
+    int first = 0;
+    for (std::size_t s = 0; s < g.textures.spaces.size(); ++s) {
+      g.textures.spaces[s].first = first;
+      first += g.textures.spaces[s].keys * g.spaces[s].num_inputs();
+    }
+  }
   r.expect_end();
   try {
     g.check();

@@ -12,7 +12,10 @@
 //     (same layout as the frames), roots, seconds, parameter map (name, unit, inputs, path,
 //     values);
 //   uint64 #edges, per edge: from, to, self-loop, similarity sizes, d_max, values, precomputed
-//     transitions.
+//     transitions;
+//   (version 3) uint8 has textures; if 1: int32 width, height, JPEG quality; corner UVs
+//     (#F x 3 Vec2f); uint64 #spaces, per space: int32 keys; then uint64 #images, each the bytes
+//     of a JPEG file (runtime/textures.h). Version 2 files load without textures.
 #include <filesystem>
 
 #include "runtime/motion_graph.h"
@@ -20,7 +23,8 @@
 
 namespace fourd {
 
-inline constexpr std::uint32_t kAssetVersion = 2;  // 2: per-cell arc angles of the hybrid blend
+// 2: per-cell arc angles of the hybrid blend; 3: textures (atlas UVs, key textures per space).
+inline constexpr std::uint32_t kAssetVersion = 3;
 
 struct Asset {
   MotionGraph graph;
@@ -32,7 +36,8 @@ struct Asset {
 void save_asset(const std::filesystem::path& path, const Asset& asset);
 
 // Throws IoError when the file cannot be read and InputError naming the file for a wrong magic,
-// an unknown version, a truncated or corrupt file, or inconsistent content.
+// an unknown version, a truncated or corrupt file, inconsistent content, or a key texture that
+// does not decode to the announced size.
 Asset load_asset(const std::filesystem::path& path);
 
 }  // namespace fourd

@@ -499,6 +499,18 @@ void Character::evaluate(const CharacterState& s) {
     accumulate_weighted_sum(bn, n, frame_.normals.data.data());
   }
   if (options_.normalize_normals) normalize_planes(&frame_.normals);
+  frame_.textures.count = 0;
+  if (!graph_.textures.empty()) {
+    texture_blend_add(graph_.textures, s.space, space.cyclic(), s.t, weights_span(space, w),
+                      static_cast<float>(beta), &frame_.textures);
+    if (beta < 1) {
+      const GraphSpace& fs = graph_.spaces[s.fade_space];
+      std::array<float, 3> wf{};
+      space_weights(fs, s.fade_p, &wf);
+      texture_blend_add(graph_.textures, s.fade_space, fs.cyclic(), s.fade_t,
+                        weights_span(fs, wf), static_cast<float>(1 - beta), &frame_.textures);
+    }
+  }
   frame_.root = s.root;
   frame_.fade_weight = static_cast<float>(beta);
 }

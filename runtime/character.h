@@ -31,7 +31,10 @@
 //
 // Output. positions and normals in the root frame (the shapes face +x at the origin; the
 // renderer applies `root`, or see character_world_positions), as planes x | y | z like
-// runtime/blend.h; normals blended from the asset's per-reference normals and normalised.
+// runtime/blend.h; normals blended from the asset's per-reference normals and normalised; and,
+// when the asset has textures, the key textures and weights that make the frame's texture
+// (runtime/textures.h: the space's input weights and the two key phases around t, the fading
+// space's too during a cross-fade).
 //
 // Steering. A ground-plane turn rate (set_turn_rate) rotates the root heading gradually on top
 // of the motion's own root curve: the fallback for graphs without a turning space (the body
@@ -140,6 +143,10 @@ struct CharacterFrame {
   BlendedFrame normals;    // root frame, planes x | y | z
   RootTransform root;      // world pose of the root
   float fade_weight = 1;   // weight of the current space (1 outside a cross-fade)
+  // The key textures to blend and their weights (runtime/textures.h), with the geometry's input
+  // weights and cross-fade; count 0 when the asset has no textures. blend_texture_image()
+  // turns it into the frame's texture on the CPU.
+  TextureBlend textures;
 };
 
 class Character {

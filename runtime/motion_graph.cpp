@@ -127,6 +127,15 @@ void MotionGraph::check() const {
       throw InputError(fmt::format("motion graph '{}': two spaces named '{}'", name, s.name()));
     }
   }
+  if (!textures.empty()) {
+    std::vector<int> inputs;
+    for (const GraphSpace& s : spaces) inputs.push_back(s.num_inputs());
+    try {
+      textures.check(inputs, spaces.front().motion.triangles.size());
+    } catch (const InputError& err) {
+      throw InputError(fmt::format("motion graph '{}': {}", name, err.what()));
+    }
+  }
   for (const GraphEdge& e : edges) {
     const int n = static_cast<int>(spaces.size());
     if (e.from < 0 || e.from >= n || e.to < 0 || e.to >= n) {

@@ -23,6 +23,7 @@
 
 #include "runtime/blend.h"
 #include "runtime/motion_space.h"
+#include "runtime/textures.h"
 
 namespace fourd {
 
@@ -108,6 +109,9 @@ struct MotionGraph {
   SimilarityDefinition similarity;  // how edge matrices were computed
   std::vector<GraphSpace> spaces;
   std::vector<GraphEdge> edges;
+  // The captured appearance (runtime/textures.h): atlas UVs and key textures per space; empty
+  // when the session had no textures.
+  AssetTextures textures;
 
   double frame_time() const { return 1.0 / fps; }
   int num_vertices() const {

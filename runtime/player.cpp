@@ -413,6 +413,7 @@ PlayerReport run_player(const Asset& asset, const ControlScript& script,
       write_ply(mesh_dir / fmt::format("frame_{:05d}.ply", f), mesh);
       ++report.meshes;
     }
+    if (options.observer) options.observer->on_frame(f, frame_time, character);
     report.played.push_back({frame_time, out.root.x, out.root.y, out.root.heading, s.space, s.phase,
                              s.fading, follow.lateral_error});
     report.frames = f + 1;

@@ -27,7 +27,8 @@
 // Outputs in the output folder: meshes/frame_NNNNN.ply (world coordinates, normals; every
 // `mesh_every` frame), frames.csv (one row per frame: state, root, cross-fade, events, search
 // time), transitions.jsonl (one JSON object per transition: request / switch / arrival times,
-// latency, E_S, E_L, path), summary.json.
+// latency, E_S, E_L, path), summary.json. A FrameObserver sees every frame: fourd-play's
+// --render draws them (runtime/player/render.h).
 #include <filesystem>
 #include <limits>
 #include <string>
@@ -73,6 +74,13 @@ ControlScript read_control_script(const std::filesystem::path& path);
 // Throws InputError naming the line of the first space the graph does not have.
 void check_control_script(const ControlScript& script, const MotionGraph& graph);
 
+// Sees every played frame (e.g. a renderer writing images: runtime/player/render.h).
+struct FrameObserver {
+  virtual ~FrameObserver() = default;
+  // Frame `index` at motion time `time` [s]; character.frame() is the frame's output.
+  virtual void on_frame(int index, double time, const Character& character) = 0;
+};
+
 struct PlayerOptions {
   std::filesystem::path out_dir;
   double fps = 0;            // > 0: overrides the script's
@@ -83,6 +91,7 @@ struct PlayerOptions {
   int transitions_depth = -1;  // >= 0: trellis depth instead of the asset's
   CharacterOptions character;
   ControllerOptions controller;
+  FrameObserver* observer = nullptr;  // called after every frame (not owned)
 };
 
 // One played frame, for plots (world root on the ground, what was playing).

@@ -12,6 +12,7 @@ PACKAGES=(
   clang libclang-rt-14-dev
   colmap
   snakemake
+  ffmpeg
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

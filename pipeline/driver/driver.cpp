@@ -177,7 +177,7 @@ const std::vector<StageSpec>& stage_table() {
       {"timewarp", {"align"}, {"timewarp"}, true, {}},
       {"motionspace", {"timewarp"}, {"motionspace"}, true, {}},
       {"texture", {"align", "capture", "calibration"}, {"texture"}, true, {}},
-      {"graph", {"motionspace", "texture"}, {"graph", "asset"}, true, {}},
+      {"graph", {"motionspace", "timewarp", "texture"}, {"graph", "asset"}, true, {}},
       {"validate",
        {"calibration", "capture", "ground_truth", "segment", "reconstruct", "align", "timewarp",
         "motionspace", "texture", "graph", "asset", "oracle", "reconstruct_oracle",

@@ -8,7 +8,7 @@
 #include <limits>
 
 #include "pipeline/core/error.h"
-#include "stages/common/embree_scene.h"
+#include "pipeline/render/embree_scene.h"
 
 namespace fourd::align {
 namespace {

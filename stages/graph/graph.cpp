@@ -202,6 +202,21 @@ void run_graph(const Session& session, const StageArgs& args) {
       build_motion_graph(config.name, config.fps, std::move(spaces), config.transitions, options,
                          &report);
   asset.transitions = options.transitions;
+  const fs::path texture_dir = stage_input_dir(session, args, "texture");
+  if (options.textures.keys == 0) {
+    log::info("no key textures (textures.keys: 0)");
+  } else if (!has_textures(texture_dir)) {
+    log::info("no textures in the asset: {} has no atlas.ply", texture_dir.string());
+  } else {
+    log::Timer tt;
+    asset.graph.textures = build_key_textures(asset.graph, texture_dir,
+                                              stage_input_dir(session, args, "timewarp"),
+                                              options.textures);
+    asset.graph.check();
+    log::info("{} key textures of {} x {} texels from {} in {:.1f} s",
+              asset.graph.textures.images.size(), asset.graph.textures.width,
+              asset.graph.textures.height, texture_dir.string(), tt.seconds());
+  }
   for (const EdgeBuildReport& e : report.edges) {
     log::info("edge {} -> {}{}: d_max {:.4g} m^2, similarity {:.2f} s CPU, {} precomputed "
               "transitions in {:.2f} s CPU",
@@ -219,6 +234,12 @@ void run_graph(const Session& session, const StageArgs& args) {
   nlohmann::json summary = graph_summary(asset.graph, report);
   summary["asset"] = fs::relative(asset_file, session.root()).generic_string();
   summary["asset_bytes"] = fs::file_size(asset_file);
+  const AssetTextures& textures = asset.graph.textures;
+  summary["textures"] = {{"images", textures.images.size()},
+                         {"width", textures.width},
+                         {"height", textures.height},
+                         {"keys", textures.empty() ? 0 : options.textures.keys},
+                         {"jpeg_quality", textures.jpeg_quality}};
   write_file_atomic(graph_dir / "graph.json", summary.dump(1));
   if (options.table2.transitions > 0) {
     log::Timer t2;

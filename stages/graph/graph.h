@@ -7,7 +7,9 @@
 // Edges: the transitions session.yaml lists, plus a self-loop for every cyclic class. Per edge:
 // the similarity matrices S^{st}_{ij}(u, v) (similarity.h) and the n best precomputed
 // transitions of the baseline (precomputed.h); per node: the normals of every reference frame,
-// so the runtime blends normals instead of recomputing them.
+// so the runtime blends normals instead of recomputing them, and, when the session has
+// textures (texture/), the atlas UVs and each input take's key textures (key_textures.h; the
+// time warps of timewarp/ say which captured frame each key phase shows).
 //
 // Also evaluates the paper's Table 2 on the built graph (table2.h) into graph/table2.json.
 // Writes graph/graph.json (nodes, edges, sizes, d_max, precomputed transitions, offline CPU
@@ -24,6 +26,7 @@
 #include "pipeline/core/session.h"
 #include "runtime/asset.h"
 #include "stages/common/stage.h"
+#include "stages/graph/key_textures.h"
 #include "stages/graph/precomputed.h"
 #include "stages/graph/table2.h"
 
@@ -37,6 +40,7 @@ struct GraphOptions {
   PrecomputeOptions precomputed;
   TransitionOptions transitions;  // defaults stored in the asset for the runtime
   Table2Options table2;           // the paper's Table 2 on this graph (graph/table2.json)
+  KeyTextureOptions textures;     // key textures in the asset (when the session has texture/)
 
   template <class V>
   void visit(V& v) {
@@ -46,6 +50,7 @@ struct GraphOptions {
     v("precomputed", precomputed, "baseline: n best transitions per edge");
     v("transitions", transitions, "online transition search defaults");
     v("table2", table2, "Table 2: random transitions, online vs precomputed");
+    v("textures", textures, "key textures of the asset (from texture/, when present)");
   }
   void check() const { transitions.check(); }
 };

@@ -1,12 +1,5 @@
 #include "stages/reconstruct/colmap_tool.h"
 
-#include <fcntl.h>
-#include <spawn.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
-#include <cerrno>
-#include <cstdlib>
 #include <cstring>
 #include <deque>
 #include <fmt/format.h>
@@ -15,58 +8,19 @@
 
 #include "pipeline/core/error.h"
 #include "pipeline/core/files.h"
-
-extern char** environ;
+#include "pipeline/core/process.h"
 
 namespace fourd::reconstruct {
 
 std::string find_colmap(const std::string& configured) {
-  const std::string name = configured.empty() ? "colmap" : configured;
-  if (name.find('/') != std::string::npos) {
-    return ::access(name.c_str(), X_OK) == 0 ? name : "";
-  }
-  const char* path = std::getenv("PATH");
-  if (!path) return "";
-  std::stringstream dirs(path);
-  std::string dir;
-  while (std::getline(dirs, dir, ':')) {
-    if (dir.empty()) continue;
-    std::filesystem::path candidate = std::filesystem::path(dir) / name;
-    if (::access(candidate.c_str(), X_OK) == 0) return candidate.string();
-  }
-  return "";
+  return find_executable(configured.empty() ? "colmap" : configured);
 }
 
 int run_colmap(const std::string& executable, const std::string& command,
                const std::vector<std::string>& args, const std::filesystem::path& log) {
   std::vector<std::string> all = {executable, command};
   all.insert(all.end(), args.begin(), args.end());
-  std::vector<char*> argv;
-  for (auto& a : all) argv.push_back(a.data());
-  argv.push_back(nullptr);
-
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, log.c_str(),
-                                   O_WRONLY | O_CREAT | O_APPEND, 0644);
-  posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
-  posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
-  pid_t pid = 0;
-  int rc = ::posix_spawn(&pid, executable.c_str(), &actions, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&actions);
-  if (rc != 0) {
-    throw IoError(fmt::format("cannot start {} {}: {}", executable, command, std::strerror(rc)));
-  }
-  int status = 0;
-  while (::waitpid(pid, &status, 0) < 0) {
-    if (errno != EINTR) {
-      throw IoError(fmt::format("waiting for {} {} failed: {}", executable, command,
-                                std::strerror(errno)));
-    }
-  }
-  if (WIFEXITED(status)) return WEXITSTATUS(status);
-  if (WIFSIGNALED(status)) return 128 + WTERMSIG(status);
-  return 1;
+  return run_process(all, log);
 }
 
 void run_colmap_checked(const std::string& executable, const std::string& command,

@@ -7,7 +7,7 @@
 #include <limits>
 
 #include "pipeline/core/error.h"
-#include "stages/common/embree_scene.h"
+#include "pipeline/render/embree_scene.h"
 
 namespace fourd::reconstruct {
 

@@ -10,7 +10,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "pipeline/core/error.h"
-#include "stages/texture/scene.h"
+#include "pipeline/render/triangle_scene.h"
 
 namespace fourd::texture {
 namespace {
@@ -266,25 +266,6 @@ void fill_background(cv::Mat& color, const std::vector<char>& surface, const std
 }
 
 }  // namespace
-
-Eigen::Vector3f sample_bilinear(const cv::Mat& image, double x, double y) {
-  const double fx0 = std::clamp(x - 0.5, 0.0, image.cols - 1.0);
-  const double fy0 = std::clamp(y - 0.5, 0.0, image.rows - 1.0);
-  const int x0 = std::min(static_cast<int>(fx0), image.cols - 1);
-  const int y0 = std::min(static_cast<int>(fy0), image.rows - 1);
-  const int x1 = std::min(x0 + 1, image.cols - 1), y1 = std::min(y0 + 1, image.rows - 1);
-  const float ax = static_cast<float>(fx0 - x0), ay = static_cast<float>(fy0 - y0);
-  auto at = [&](int r, int c) -> Vector3f {
-    if (image.type() == CV_32FC3) {
-      const cv::Vec3f& p = image.at<cv::Vec3f>(r, c);
-      return {p[0], p[1], p[2]};
-    }
-    const cv::Vec3b& p = image.at<cv::Vec3b>(r, c);
-    return Vector3f(p[0], p[1], p[2]) / 255.0f;
-  };
-  return (1 - ay) * ((1 - ax) * at(y0, x0) + ax * at(y0, x1)) +
-         ay * ((1 - ax) * at(y1, x0) + ax * at(y1, x1));
-}
 
 cv::Mat texture_for_output(const cv::Mat& color, bool float_output) {
   if (float_output) return color;

@@ -13,6 +13,7 @@
 #include "pipeline/core/camera.h"
 #include "pipeline/core/config.h"
 #include "pipeline/core/mesh.h"
+#include "pipeline/render/textured_render.h"  // sample_bilinear
 #include "stages/texture/atlas.h"
 
 namespace fourd::texture {
@@ -60,10 +61,6 @@ struct BakedTexture {
 BakedTexture bake_texture(const Atlas& atlas, const TexelMap& texels,
                           const std::vector<Vec3f>& positions, const std::vector<Tri>& triangles,
                           const std::vector<View>& views, const BakeOptions& options);
-
-// Bilinear lookup of a BGR image (8-bit or float) at pixel coordinates with centres at +0.5
-// (the calibration's convention); clamped at the borders. Result in [0, 1].
-Eigen::Vector3f sample_bilinear(const cv::Mat& image, double x, double y);
 
 // The texture for writing: CV_8UC3, or CV_32FC3 unchanged when `float_output`.
 cv::Mat texture_for_output(const cv::Mat& color, bool float_output);

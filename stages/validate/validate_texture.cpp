@@ -15,7 +15,7 @@
 #include "pipeline/core/error.h"
 #include "pipeline/core/image_io.h"
 #include "pipeline/core/mesh_io.h"
-#include "stages/texture/render.h"
+#include "pipeline/render/textured_render.h"
 #include "stages/texture/texture_io.h"
 #include "stages/validate/sampling.h"
 #include "stages/validate/validate.h"
@@ -25,7 +25,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
-using texture::ImageError;
+using fourd::ImageError;
 
 struct CameraResult {
   ImageError error;
@@ -39,7 +39,7 @@ std::vector<CameraResult> compare_frame(const Session& session, const Mesh& text
                                         const cv::Mat& texture_image,
                                         const std::vector<Camera>& cameras, const std::string& take,
                                         int frame, bool pictures) {
-  const texture::TexturedRenderer renderer(textured, texture_image);
+  const MeshRenderer renderer(textured, texture_image);
   std::vector<CameraResult> results(cameras.size());
   tbb::parallel_for(std::size_t{0}, cameras.size(), [&](std::size_t c) {
     const Camera& camera = cameras[c];
@@ -48,10 +48,10 @@ std::vector<CameraResult> compare_frame(const Session& session, const Mesh& text
                                      camera.name / (frame_name(frame) + ".png");
     cv::Mat silhouette = read_image(silhouette_file, cv::IMREAD_GRAYSCALE);
     cv::erode(silhouette > 127, silhouette, cv::Mat());
-    const texture::TexturedView view = renderer.render(camera);
+    const RenderedView view = renderer.render(camera);
     const cv::Mat mask = silhouette & view.mask;
     CameraResult& r = results[c];
-    r.error = texture::image_error(view.image, captured, mask);
+    r.error = image_error(view.image, captured, mask);
     r.silhouette = cv::countNonZero(silhouette);
     r.compared = cv::countNonZero(mask);
     if (pictures) {

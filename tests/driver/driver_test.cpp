@@ -410,8 +410,9 @@ TEST_F(DriverTest, OracleVariantsReadGroundTruthWhereItStandsIn) {
   // Texture reads the ground-truth meshes and the capture itself (raw data, never an oracle).
   EXPECT_EQ(inputs["texture_oracle"],
             (std::vector<std::string>{"oracle/align", "capture", "calibration"}));
-  EXPECT_EQ(inputs["graph_oracle"],
-            (std::vector<std::string>{"motionspace_oracle", "texture_oracle"}));
+  // Graph reads the time warps too: which captured frame each key texture shows.
+  EXPECT_EQ(inputs["graph_oracle"], (std::vector<std::string>{
+                                        "motionspace_oracle", "timewarp_oracle", "texture_oracle"}));
   EXPECT_TRUE(inputs.count("oracle"));  // the preparation step runs before them
 }
 

@@ -81,6 +81,29 @@ done
 "$bin/fourd-play" "$work/asset/motion_graph.fourd" "$recipe/../play/timeline.txt" -o "$work/play_timeline" --mesh-every 10
 test -n "$(ls "$work/play_timeline/meshes")" || { echo "fourd-play wrote no mesh"; exit 1; }
 
+echo "== headless renders of the textured character (follow and studio camera)"
+"$bin/fourd-play" "$work/asset/motion_graph.fourd" "$recipe/../play/timeline.txt" \
+  -o "$work/play_render" --no-meshes --duration 1 --fps 6 --render "$work/play_render/follow" \
+  --image-size 240x180
+"$bin/fourd-play" "$work/asset/motion_graph.fourd" "$recipe/../play/timeline.txt" \
+  -o "$work/play_render" --no-meshes --duration 0.5 --fps 6 --render "$work/play_render/studio" \
+  --camera studio:0 --calibration "$work/calibration"
+python3 - "$work/play_render" <<'PY'
+import json, sys
+for view in ("follow", "studio"):
+    r = json.load(open(f"{sys.argv[1]}/{view}/render.json"))
+    print(f"  {view}: {r['frames']} frames {r['width']}x{r['height']}, textured {r['textured']}, "
+          f"foreground {r['foreground_min']:.3f}..{r['foreground_max']:.3f}, "
+          f"centroid offset {r['max_centroid_offset']:.3f}")
+    assert r["textured"], f"{view}: the asset should carry the tiny sample's textures"
+    assert r["frames"] >= 3, f"{view}: too few frames rendered"
+    assert r["foreground_min"] > 0.005, f"{view}: the character is missing from a frame"
+    assert r["foreground_max"] < 0.6, f"{view}: the character fills the picture"
+    if view == "follow":
+        assert r["max_centroid_offset"] < 0.2, "follow: the character is not centred"
+print("renders ok")
+PY
+
 echo "== second run skips unchanged stages"
 out=$("$bin/fourd" run "$work" 2>&1)
 echo "$out"

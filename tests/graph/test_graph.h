@@ -219,4 +219,49 @@ inline MotionGraph make_test_graph(bool with_turning = false, double fps = 25,
   return graph::build_motion_graph("test", fps, std::move(spaces), transitions, options, nullptr);
 }
 
+// Synthetic key textures for `graph` (runtime/textures.h): `keys` phases per input, `size`
+// texels square, every image a distinct pattern (so a blend can be traced to its images), UVs
+// spread over the texture.
+inline void add_test_textures(MotionGraph* graph, int keys = 4, int size = 32) {
+  AssetTextures& t = graph->textures;
+  t = AssetTextures{};
+  t.width = t.height = size;
+  const std::size_t faces = graph->spaces.front().motion.triangles.size();
+  for (std::size_t f = 0; f < faces; ++f) {
+    const float u = (static_cast<float>(f % 16) + 0.5f) / 16, v = (static_cast<float>(f / 16 % 16) + 0.5f) / 16;
+    t.corner_uvs.push_back(Vec2f(u, v));
+    t.corner_uvs.push_back(Vec2f(u + 0.02f, v));
+    t.corner_uvs.push_back(Vec2f(u, v + 0.02f));
+  }
+  for (const GraphSpace& s : graph->spaces) {
+    t.spaces.push_back({keys, static_cast<int>(t.images.size())});
+    for (int k = 0; k < keys * s.num_inputs(); ++k) {
+      const int id = static_cast<int>(t.images.size());
+      cv::Mat image(size, size, CV_8UC3);
+      for (int y = 0; y < size; ++y) {
+        for (int x = 0; x < size; ++x) {
+          // Smooth (as JPEG keeps them well) and distinct: a red level of its own per image.
+          const double a = 2 * std::numbers::pi * (static_cast<double>(x) / size + 0.13 * id);
+          const double b = 2 * std::numbers::pi * (static_cast<double>(y) / size + 0.29 * id);
+          image.at<cv::Vec3b>(y, x) = cv::Vec3b(static_cast<std::uint8_t>(128 + 90 * std::sin(a)),
+                                                static_cast<std::uint8_t>(128 + 90 * std::cos(b)),
+                                                static_cast<std::uint8_t>(20 + (47 * id) % 216));
+        }
+      }
+      t.images.push_back(image);
+    }
+  }
+  graph->check();
+}
+
+// The test graph (locomotion <-> jump_length) with 4 key textures of 32 x 32 texels per input.
+inline const MotionGraph& textured_test_graph() {
+  static const MotionGraph g = [] {
+    MotionGraph graph = make_test_graph();
+    add_test_textures(&graph, 4, 32);
+    return graph;
+  }();
+  return g;
+}
+
 }  // namespace fourd::test

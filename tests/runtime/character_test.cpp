@@ -342,6 +342,23 @@ TEST(RuntimeCharacter, StepsAllocateNothing) {
   EXPECT_GE(g_allocations.load() - after, 2);
 }
 
+// With textures the frame also lists the key textures to blend, and the CPU blend into a
+// kept image allocates nothing either.
+TEST(RuntimeCharacter, TexturedStepsAndTheirBlendAllocateNothing) {
+  const MotionGraph& g = test::textured_test_graph();
+  Character c(g, TransitionOptions{});
+  c.reset(g.find_space("locomotion"), 1.2, 0.0);
+  cv::Mat texture;
+  blend_texture_image(g.textures, c.step(1 / 60.0).textures, &texture);
+  const long before = g_allocations.load();
+  for (int k = 1; k <= 300; ++k) {
+    if (k == 60) c.request_motion(g.find_space("jump_length"), 0.8);
+    blend_texture_image(g.textures, c.step(1 / 60.0).textures, &texture);
+  }
+  EXPECT_EQ(g_allocations.load() - before, 0);
+  EXPECT_GT(c.frame().textures.count, 0);
+}
+
 TEST(RuntimeCharacter, ClampsAndReportsParametersAndRoutesRequestsWithoutAnEdge) {
   const MotionGraph& g = graph_with_turning();
   const int loco = g.find_space("locomotion"), jump = g.find_space("jump_length"),

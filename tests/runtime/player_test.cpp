@@ -221,8 +221,8 @@ TEST(PlayerExecutable, RefusesBadInputWithAClearMessage) {
   // A flipped bit, another format version, the other byte order: refused, named, exit 4.
   std::string flipped = bytes;
   flipped[bytes.size() / 3] ^= 0x10;
-  std::string old_version = bytes;
-  old_version[8] = static_cast<char>(old_version[8] - 1);
+  std::string old_version = bytes;  // version 1: older than the oldest the runtime reads (2)
+  old_version[8] = 1;
   std::string swapped = bytes;
   std::reverse(swapped.begin() + 12, swapped.begin() + 16);
   for (const auto& [name, content, reason] :

@@ -7,7 +7,7 @@
 #include "pipeline/core/error.h"
 #include "stages/texture/atlas.h"
 #include "stages/texture/bake.h"
-#include "stages/texture/render.h"
+#include "pipeline/render/textured_render.h"
 #include "tests/texture/textured_scene.h"
 
 namespace fourd::texture {
@@ -27,7 +27,7 @@ struct SphereScene {
   }
 
   std::vector<View> views(const std::vector<Camera>& cameras) const {
-    const TexturedRenderer renderer(sphere, truth);
+    const MeshRenderer renderer(sphere, truth);
     std::vector<View> out;
     for (const Camera& c : cameras) out.push_back({&c, test::record(renderer, c)});
     return out;
@@ -71,10 +71,10 @@ TEST(Bake, SphereFromKnownCamerasReproducesItsTexture) {
 
   // Rendered into a camera that took no part in the bake, it looks like the true sphere.
   const Camera held_out = test::camera_ring(1, 2.2, 0.3, "held", 0.3).front();
-  const TexturedRenderer truth_renderer(scene.sphere, scene.truth);
-  const TexturedRenderer baked_renderer(with_atlas_uvs(scene.sphere, scene.atlas), baked.color);
-  const TexturedView want = truth_renderer.render(held_out);
-  const TexturedView got = baked_renderer.render(held_out);
+  const MeshRenderer truth_renderer(scene.sphere, scene.truth);
+  const MeshRenderer baked_renderer(with_atlas_uvs(scene.sphere, scene.atlas), baked.color);
+  const RenderedView want = truth_renderer.render(held_out);
+  const RenderedView got = baked_renderer.render(held_out);
   cv::Mat recorded;
   want.image.convertTo(recorded, CV_8UC3, 255.0);
   cv::Mat inside;

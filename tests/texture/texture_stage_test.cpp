@@ -40,7 +40,7 @@ class SphereSession {
       shape.positions = posed.positions;
       if (f == 0) write_ply(root_ / "oracle" / "align" / "template.ply", shape);
       write_ply(root_ / "oracle" / "align" / "roll" / (frame_name(f) + ".ply"), shape);
-      const TexturedRenderer renderer(posed, truth);
+      const MeshRenderer renderer(posed, truth);
       for (const Camera& c : cameras_) {
         write_image_atomic(root_ / "capture" / "roll" / c.name / (frame_name(f) + ".png"),
                            test::record(renderer, c));

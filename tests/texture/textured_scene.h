@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "pipeline/core/camera.h"
-#include "stages/texture/render.h"
+#include "pipeline/render/textured_render.h"
 #include "tests/synth/uv_sphere.h"
 
 namespace fourd::test {
@@ -52,7 +52,7 @@ inline std::vector<Camera> camera_ring(int count, double radius, double height,
 }
 
 // What `camera` records of `mesh` textured by `texture` (unlit, 8-bit BGR, black backdrop).
-inline cv::Mat record(const texture::TexturedRenderer& renderer, const Camera& camera) {
+inline cv::Mat record(const MeshRenderer& renderer, const Camera& camera) {
   cv::Mat image;
   renderer.render(camera).image.convertTo(image, CV_8UC3, 255.0);
   return image;

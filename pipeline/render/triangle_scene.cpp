@@ -1,12 +1,12 @@
-#include "stages/texture/scene.h"
+#include "pipeline/render/triangle_scene.h"
 
 #include <embree3/rtcore.h>
 
 #include <limits>
 
-#include "stages/common/embree_scene.h"
+#include "pipeline/render/embree_scene.h"
 
-namespace fourd::texture {
+namespace fourd {
 namespace {
 
 RTCRay make_ray(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction, float tnear,
@@ -69,4 +69,4 @@ SceneHit TriangleScene::intersect(const Eigen::Vector3f& origin,
   return hit;
 }
 
-}  // namespace fourd::texture
+}  // namespace fourd

@@ -1,4 +1,4 @@
-#include "stages/common/embree_scene.h"
+#include "pipeline/render/embree_scene.h"
 
 #include <cstring>
 

@@ -1,14 +1,14 @@
 #pragma once
-// A triangle mesh in an Embree scene, for the two questions the texture stage asks: is the
-// segment from a surface point to a camera blocked (visibility of a texel), and what does a
-// camera ray hit first (rendering a textured mesh).
+// A triangle mesh in an Embree scene, for the two questions the texture stage and the renderers
+// ask: is the segment from a surface point to a camera (or a light) blocked, and what does a
+// camera ray hit first.
 #include <Eigen/Core>
 #include <memory>
 #include <vector>
 
 #include "pipeline/core/mesh.h"
 
-namespace fourd::texture {
+namespace fourd {
 
 struct SceneHit {
   int face = -1;                                     // -1: the ray misses
@@ -35,4 +35,4 @@ class TriangleScene {
   std::unique_ptr<Impl> impl_;
 };
 
-}  // namespace fourd::texture
+}  // namespace fourd
