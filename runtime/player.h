@@ -29,6 +29,7 @@
 // time), transitions.jsonl (one JSON object per transition: request / switch / arrival times,
 // latency, E_S, E_L, path), summary.json.
 #include <filesystem>
+#include <functional>
 #include <limits>
 #include <string>
 #include <string_view>
@@ -74,7 +75,7 @@ ControlScript read_control_script(const std::filesystem::path& path);
 void check_control_script(const ControlScript& script, const MotionGraph& graph);
 
 struct PlayerOptions {
-  std::filesystem::path out_dir;
+  std::filesystem::path out_dir;  // empty: write nothing (e.g. when on_frame takes the frames)
   double fps = 0;            // > 0: overrides the script's
   double duration = -1;      // >= 0: overrides the script's
   bool write_meshes = true;
@@ -83,6 +84,8 @@ struct PlayerOptions {
   int transitions_depth = -1;  // >= 0: trellis depth instead of the asset's
   CharacterOptions character;
   ControllerOptions controller;
+  // Called with every played frame, after its step (e.g. to bake the frames into a file).
+  std::function<void(int frame, double time, const CharacterFrame& out)> on_frame;
 };
 
 // One played frame, for plots (world root on the ground, what was playing).

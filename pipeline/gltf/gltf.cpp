@@ -1,0 +1,145 @@
+// The one translation unit that compiles tinygltf (see gltf.h for how images are handled).
+#define TINYGLTF_IMPLEMENTATION
+#include "pipeline/gltf/gltf.h"
+
+#include <fmt/format.h>
+
+#include <map>
+#include <numeric>
+#include <opencv2/imgcodecs.hpp>
+#include <sstream>
+
+#include "pipeline/core/error.h"
+#include "pipeline/core/files.h"
+
+namespace fourd::gltf {
+namespace {
+
+Eigen::Matrix4d homogeneous(const Eigen::Matrix3d& linear) {
+  Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
+  m.topLeftCorner<3, 3>() = linear;
+  return m;
+}
+
+// Decodes embedded and external images with OpenCV. The pixels are stored as 8-bit BGR
+// (component 3).
+bool decode_image(tinygltf::Image* image, const int index, std::string* err, std::string*, int, int,
+                  const unsigned char* bytes, int size, void*) {
+  const cv::Mat encoded(1, size, CV_8UC1, const_cast<unsigned char*>(bytes));
+  cv::Mat bgr = cv::imdecode(encoded, cv::IMREAD_COLOR);
+  if (bgr.empty()) {
+    if (err)
+      *err += fmt::format("cannot decode image {} ('{}', {})\n", index, image->name,
+                          image->mimeType.empty() ? image->uri : image->mimeType);
+    return false;
+  }
+  if (!bgr.isContinuous()) bgr = bgr.clone();
+  image->width = bgr.cols;
+  image->height = bgr.rows;
+  image->component = 3;
+  image->bits = 8;
+  image->pixel_type = TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
+  image->image.assign(bgr.data, bgr.data + bgr.total() * bgr.elemSize());
+  return true;
+}
+
+}  // namespace
+
+Eigen::Matrix4d to_gltf_axes(const Eigen::Matrix4d& ours) {
+  return homogeneous(kOurFromGltf.transpose()) * ours * homogeneous(kOurFromGltf);
+}
+
+Eigen::Quaterniond to_gltf_axes(const Eigen::Quaterniond& ours) {
+  const Eigen::Quaterniond our_from_gltf(kOurFromGltf);
+  return our_from_gltf.conjugate() * ours * our_from_gltf;
+}
+
+int BufferWriter::add_view(const void* bytes, std::size_t size, int target) {
+  std::vector<unsigned char>& data = model_.buffers[0].data;
+  data.resize((data.size() + 3) / 4 * 4, 0);  // accessors must start 4-byte aligned
+  tinygltf::BufferView view;
+  view.buffer = 0;
+  view.byteOffset = data.size();
+  view.byteLength = size;
+  view.target = target;
+  const auto* begin = static_cast<const unsigned char*>(bytes);
+  data.insert(data.end(), begin, begin + size);
+  model_.bufferViews.push_back(view);
+  return static_cast<int>(model_.bufferViews.size()) - 1;
+}
+
+int BufferWriter::add_png_texture(std::span<const unsigned char> png, const std::string& name) {
+  tinygltf::Image image;
+  image.name = name;
+  image.mimeType = "image/png";
+  image.bufferView = add_view(png.data(), png.size(), 0);
+  model_.images.push_back(image);
+  tinygltf::Sampler sampler;
+  sampler.magFilter = TINYGLTF_TEXTURE_FILTER_LINEAR;
+  sampler.minFilter = TINYGLTF_TEXTURE_FILTER_LINEAR_MIPMAP_LINEAR;
+  model_.samplers.push_back(sampler);
+  tinygltf::Texture texture;
+  texture.source = static_cast<int>(model_.images.size()) - 1;
+  texture.sampler = static_cast<int>(model_.samplers.size()) - 1;
+  model_.textures.push_back(texture);
+  return static_cast<int>(model_.textures.size()) - 1;
+}
+
+ExportVertices export_vertices(const Mesh& mesh) {
+  ExportVertices out;
+  const int n = static_cast<int>(mesh.num_vertices());
+  if (mesh.uv_triangles.empty()) {
+    out.source.resize(n);
+    std::iota(out.source.begin(), out.source.end(), 0);
+    out.uv = mesh.uvs.empty() ? std::vector<int>(n, -1) : out.source;
+    out.triangles = mesh.triangles;
+    return out;
+  }
+  std::map<std::pair<int, int>, int> index;  // (vertex, uv) -> exported vertex
+  out.triangles.resize(mesh.num_triangles());
+  for (std::size_t f = 0; f < mesh.num_triangles(); ++f) {
+    for (int c = 0; c < 3; ++c) {
+      const std::pair<int, int> key{mesh.triangles[f][c], mesh.uv_triangles[f][c]};
+      auto [it, added] = index.emplace(key, static_cast<int>(out.source.size()));
+      if (added) {
+        out.source.push_back(key.first);
+        out.uv.push_back(key.second);
+      }
+      out.triangles[f][c] = it->second;
+    }
+  }
+  return out;
+}
+
+void write_glb(const std::filesystem::path& path, tinygltf::Model& model) {
+  tinygltf::TinyGLTF writer;
+  std::ostringstream bytes;
+  if (!writer.WriteGltfSceneToStream(&model, bytes, false, true))
+    throw IoError(fmt::format("cannot serialise the glTF model for {}", path.string()));
+  write_file_atomic(path, bytes.str());
+}
+
+tinygltf::Model read_gltf(const std::filesystem::path& path) {
+  const std::string file = path.string();
+  const std::string bytes = read_file(path);
+  tinygltf::TinyGLTF loader;
+  loader.SetImageLoader(decode_image, nullptr);
+  tinygltf::Model model;
+  std::string err, warn;
+  const auto* data = reinterpret_cast<const unsigned char*>(bytes.data());
+  const bool binary = bytes.size() >= 4 && bytes.compare(0, 4, "glTF") == 0;
+  const std::string base_dir = path.parent_path().string();
+  const bool ok = binary
+                      ? loader.LoadBinaryFromMemory(&model, &err, &warn, data,
+                                                    static_cast<unsigned>(bytes.size()), base_dir)
+                      : loader.LoadASCIIFromString(&model, &err, &warn, bytes.data(),
+                                                   static_cast<unsigned>(bytes.size()), base_dir);
+  if (!ok) {
+    while (!err.empty() && err.back() == '\n') err.pop_back();
+    throw InputError(
+        fmt::format("{}: not a readable glTF file: {}", file, err.empty() ? "unknown error" : err));
+  }
+  return model;
+}
+
+}  // namespace fourd::gltf
