@@ -6,6 +6,7 @@
 #include <string>
 
 #include "pipeline/core/error.h"
+#include "pipeline/core/files.h"
 #include "pipeline/core/log.h"
 #include "runtime/asset.h"
 #include "runtime/gltf_export.h"
@@ -41,6 +42,9 @@ int main(int argc, char** argv) {
   if (verbose) log::set_level(log::Level::kDebug);
   try {
     log::Timer timer;
+    // An output folder that cannot be made fails now, not after the work.
+    const std::filesystem::path out_dir = std::filesystem::path(out_path).parent_path();
+    if (!out_dir.empty()) ensure_directory(out_dir);
     const Asset asset = load_asset(asset_path);
     MeshAnimation animation;
     animation.name = asset.graph.name;
