@@ -218,37 +218,20 @@ void write_mesh_animation_glb(const std::filesystem::path& path, const MeshAnima
     anim.name = clip.name;
     const int input =
         buffer.add_accessor(clip.times, kFloat, TINYGLTF_TYPE_SCALAR, 0, /*with_bounds=*/true);
-    auto add_channel = [&](const char* target_path, const std::vector<float>& values, int type) {
-      tinygltf::AnimationSampler sampler;
-      sampler.input = input;
-      sampler.output = buffer.add_accessor(values, kFloat, type, 0);
-      sampler.interpolation = "LINEAR";
-      anim.samplers.push_back(sampler);
-      tinygltf::AnimationChannel channel;
-      channel.sampler = static_cast<int>(anim.samplers.size()) - 1;
-      channel.target_node = 0;
-      channel.target_path = target_path;
-      anim.channels.push_back(channel);
-    };
     std::vector<float> weights(static_cast<std::size_t>(frames) * num_targets, 0.0f);
     for (int f = 0; f < frames; ++f) weights[f * num_targets + first_target + f] = 1;
-    add_channel("weights", weights, TINYGLTF_TYPE_SCALAR);
-    std::vector<float> translations, rotations;
-    Eigen::Quaterniond previous = Eigen::Quaterniond::Identity();
-    for (int f = 0; f < frames; ++f) {
-      const RootTransform& root = clip.roots[f];
+    gltf::add_linear_channel(&anim, buffer, input, 0, "weights", weights, TINYGLTF_TYPE_SCALAR);
+    std::vector<float> translations;
+    std::vector<Eigen::Quaterniond> rotations;
+    for (const RootTransform& root : clip.roots) {
       add_float3(&translations, gltf::to_gltf(Vec3f(static_cast<float>(root.x),
                                                     static_cast<float>(root.y), 0.0f)));
-      Eigen::Quaterniond q = gltf::to_gltf_axes(
-          Eigen::Quaterniond(Eigen::AngleAxisd(root.heading, Eigen::Vector3d::UnitZ())));
-      // Same hemisphere as the previous key, so every interpolator takes the short way.
-      if (f > 0 && q.dot(previous) < 0) q.coeffs() *= -1;
-      previous = q;
-      rotations.insert(rotations.end(), {static_cast<float>(q.x()), static_cast<float>(q.y()),
-                                         static_cast<float>(q.z()), static_cast<float>(q.w())});
+      rotations.emplace_back(Eigen::AngleAxisd(root.heading, Eigen::Vector3d::UnitZ()));
     }
-    add_channel("translation", translations, TINYGLTF_TYPE_VEC3);
-    add_channel("rotation", rotations, TINYGLTF_TYPE_VEC4);
+    gltf::add_linear_channel(&anim, buffer, input, 0, "translation", translations,
+                             TINYGLTF_TYPE_VEC3);
+    gltf::add_linear_channel(&anim, buffer, input, 0, "rotation", gltf::rotation_keys(rotations),
+                             TINYGLTF_TYPE_VEC4);
     model.animations.push_back(std::move(anim));
     first_target += frames;
   }

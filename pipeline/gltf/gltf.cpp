@@ -85,6 +85,34 @@ int BufferWriter::add_png_texture(std::span<const unsigned char> png, const std:
   return static_cast<int>(model_.textures.size()) - 1;
 }
 
+void add_linear_channel(tinygltf::Animation* animation, BufferWriter& buffer, int input, int node,
+                        const char* path, const std::vector<float>& values, int type) {
+  tinygltf::AnimationSampler sampler;
+  sampler.input = input;
+  sampler.output = buffer.add_accessor(values, TINYGLTF_COMPONENT_TYPE_FLOAT, type, 0);
+  sampler.interpolation = "LINEAR";
+  animation->samplers.push_back(sampler);
+  tinygltf::AnimationChannel channel;
+  channel.sampler = static_cast<int>(animation->samplers.size()) - 1;
+  channel.target_node = node;
+  channel.target_path = path;
+  animation->channels.push_back(channel);
+}
+
+std::vector<float> rotation_keys(std::span<const Eigen::Quaterniond> ours) {
+  std::vector<float> keys;
+  keys.reserve(4 * ours.size());
+  Eigen::Quaterniond previous = Eigen::Quaterniond::Identity();
+  for (std::size_t f = 0; f < ours.size(); ++f) {
+    Eigen::Quaterniond q = to_gltf_axes(ours[f].normalized());
+    if (f > 0 && q.dot(previous) < 0) q.coeffs() *= -1;
+    previous = q;
+    keys.insert(keys.end(), {static_cast<float>(q.x()), static_cast<float>(q.y()),
+                             static_cast<float>(q.z()), static_cast<float>(q.w())});
+  }
+  return keys;
+}
+
 ExportVertices export_vertices(const Mesh& mesh) {
   ExportVertices out;
   const int n = static_cast<int>(mesh.num_vertices());

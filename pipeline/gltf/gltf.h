@@ -87,6 +87,15 @@ class BufferWriter {
   tinygltf::Model& model_;
 };
 
+// Adds a LINEAR channel to `animation`: node `node`'s `path` ("translation", "rotation",
+// "weights") keyed at the times of accessor `input`, `values` (float, `type` per key).
+void add_linear_channel(tinygltf::Animation* animation, BufferWriter& buffer, int input, int node,
+                        const char* path, const std::vector<float>& values, int type);
+
+// Rotation keys (x, y, z, w per key) of rotations of our world, in glTF axes, each in the
+// hemisphere of the key before it so that every interpolator takes the short way.
+std::vector<float> rotation_keys(std::span<const Eigen::Quaterniond> ours);
+
 // glTF attributes are per vertex; a mesh with per-corner UVs is split at its UV seams.
 struct ExportVertices {
   std::vector<int> source;     // per exported vertex: the mesh vertex it copies

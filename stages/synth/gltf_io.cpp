@@ -104,8 +104,8 @@ void add_mesh(tinygltf::Model& model, BufferWriter& buffer, const Character& cha
   std::vector<std::uint16_t> joints;
   for (std::size_t i = 0; i < vertices.source.size(); ++i) {
     const int v = vertices.source[i];
-    const Eigen::Vector3f p = kOurFromGltf.transpose().cast<float>() * rest.positions[v];
-    const Eigen::Vector3f n = kOurFromGltf.transpose().cast<float>() * rest.normals[v];
+    const Eigen::Vector3f p = gltf::to_gltf(rest.positions[v]);
+    const Eigen::Vector3f n = gltf::to_gltf(rest.normals[v]);
     positions.insert(positions.end(), {p.x(), p.y(), p.z()});
     normals.insert(normals.end(), {n.x(), n.y(), n.z()});
     if (has_uvs) {
@@ -173,7 +173,7 @@ void add_skeleton(tinygltf::Model& model, BufferWriter& buffer, const Character&
   for (int j = 0; j < joints; ++j) {
     tinygltf::Node node;
     node.name = skeleton.names[j];
-    const Eigen::Vector3d t = kOurFromGltf.transpose() * skeleton.rest_offsets[j];
+    const Eigen::Vector3d t = gltf::to_gltf(skeleton.rest_offsets[j]);
     node.translation = {t.x(), t.y(), t.z()};
     model.nodes.push_back(node);
     if (j > 0) model.nodes[skeleton.parents[j]].children.push_back(j);
@@ -209,38 +209,20 @@ void add_animation(tinygltf::Model& model, BufferWriter& buffer, const MotionCli
   for (int f = 0; f < frames; ++f) times[f] = static_cast<float>(f / clip.fps);
   const int input =
       buffer.add_accessor(times, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR, 0, true);
-  auto add_channel = [&](int node, const char* path, const std::vector<float>& values, int type) {
-    tinygltf::AnimationSampler sampler;
-    sampler.input = input;
-    sampler.output = buffer.add_accessor(values, TINYGLTF_COMPONENT_TYPE_FLOAT, type, 0);
-    sampler.interpolation = "LINEAR";
-    animation.samplers.push_back(sampler);
-    tinygltf::AnimationChannel channel;
-    channel.sampler = static_cast<int>(animation.samplers.size()) - 1;
-    channel.target_node = node;
-    channel.target_path = path;
-    animation.channels.push_back(channel);
-  };
   for (int j = 0; j < joints; ++j) {
-    std::vector<float> rotations;
-    Eigen::Quaterniond previous = Eigen::Quaterniond::Identity();
-    for (int f = 0; f < frames; ++f) {
-      Eigen::Quaterniond q = to_gltf_axes(clip.poses[f].local_rotations[j].normalized());
-      // Same hemisphere as the previous key, so every interpolator takes the short way.
-      if (f > 0 && q.dot(previous) < 0) q.coeffs() *= -1;
-      previous = q;
-      rotations.insert(rotations.end(), {static_cast<float>(q.x()), static_cast<float>(q.y()),
-                                         static_cast<float>(q.z()), static_cast<float>(q.w())});
-    }
-    add_channel(j, "rotation", rotations, TINYGLTF_TYPE_VEC4);
+    std::vector<Eigen::Quaterniond> rotations(frames);
+    for (int f = 0; f < frames; ++f) rotations[f] = clip.poses[f].local_rotations[j];
+    gltf::add_linear_channel(&animation, buffer, input, j, "rotation",
+                             gltf::rotation_keys(rotations), TINYGLTF_TYPE_VEC4);
   }
   std::vector<float> translations;
   for (const Pose& pose : clip.poses) {
-    const Eigen::Vector3d t = kOurFromGltf.transpose() * pose.root_position;
+    const Eigen::Vector3d t = gltf::to_gltf(pose.root_position);
     translations.insert(translations.end(), {static_cast<float>(t.x()), static_cast<float>(t.y()),
                                              static_cast<float>(t.z())});
   }
-  add_channel(0, "translation", translations, TINYGLTF_TYPE_VEC3);
+  gltf::add_linear_channel(&animation, buffer, input, 0, "translation", translations,
+                           TINYGLTF_TYPE_VEC3);
   model.animations.push_back(animation);
 }
 
