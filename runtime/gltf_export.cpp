@@ -123,42 +123,19 @@ void write_mesh_animation_glb(const std::filesystem::path& path, const MeshAnima
   const std::string file = path.string();
   check_animation(file, animation);
   const Mesh& base = animation.base;
-  const gltf::ExportVertices vertices = gltf::export_vertices(base);
   const bool textured = !base.uvs.empty() && !animation.texture_png.empty();
 
   tinygltf::Model model;
   model.asset.version = "2.0";
   model.asset.generator = "fourd-export";
   gltf::BufferWriter buffer(model);
-  constexpr int kArray = TINYGLTF_TARGET_ARRAY_BUFFER;
-  constexpr int kFloat = TINYGLTF_COMPONENT_TYPE_FLOAT;
 
-  // The template.
-  std::vector<Vec3f> base_normals(base.num_vertices());
-  for (std::size_t v = 0; v < base.num_vertices(); ++v) base_normals[v] = unit_normal(base.normals[v]);
-  std::vector<float> positions, normals, uvs;
-  for (std::size_t i = 0; i < vertices.source.size(); ++i) {
-    const int v = vertices.source[i];
-    add_float3(&positions, gltf::to_gltf(base.positions[v]));
-    add_float3(&normals, gltf::to_gltf(base_normals[v]));
-    if (textured) {
-      const Eigen::Vector2f uv = gltf::to_gltf_uv(base.uvs[vertices.uv[i]]);
-      uvs.insert(uvs.end(), {uv.x(), uv.y()});
-    }
-  }
-  std::vector<std::uint32_t> indices;
-  for (const Tri& t : vertices.triangles)
-    for (int c = 0; c < 3; ++c) indices.push_back(static_cast<std::uint32_t>(t[c]));
-  tinygltf::Primitive primitive;
-  primitive.mode = TINYGLTF_MODE_TRIANGLES;
-  primitive.attributes["POSITION"] =
-      buffer.add_accessor(positions, kFloat, TINYGLTF_TYPE_VEC3, kArray, true);
-  primitive.attributes["NORMAL"] = buffer.add_accessor(normals, kFloat, TINYGLTF_TYPE_VEC3, kArray);
-  if (textured)
-    primitive.attributes["TEXCOORD_0"] = buffer.add_accessor(uvs, kFloat, TINYGLTF_TYPE_VEC2, kArray);
-  primitive.indices =
-      buffer.add_accessor(indices, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR,
-                          TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+  // The template, with unit normals (glTF requires them).
+  Mesh unit_base = base;
+  for (Vec3f& n : unit_base.normals) n = unit_normal(n);
+  const std::vector<Vec3f>& base_normals = unit_base.normals;
+  gltf::ExportVertices vertices;
+  tinygltf::Primitive primitive = gltf::add_mesh_primitive(buffer, unit_base, textured, &vertices);
 
   tinygltf::Material material;
   material.name = "performer";
@@ -182,6 +159,8 @@ void write_mesh_animation_glb(const std::filesystem::path& path, const MeshAnima
         add_float3(&dn, gltf::to_gltf(Vec3f(unit_normal(clip.normals[f][v]) - base_normals[v])));
       }
       std::map<std::string, int> target;
+      constexpr int kArray = TINYGLTF_TARGET_ARRAY_BUFFER;
+      constexpr int kFloat = TINYGLTF_COMPONENT_TYPE_FLOAT;
       target["POSITION"] = buffer.add_accessor(dp, kFloat, TINYGLTF_TYPE_VEC3, kArray, true);
       target["NORMAL"] = buffer.add_accessor(dn, kFloat, TINYGLTF_TYPE_VEC3, kArray);
       primitive.targets.push_back(std::move(target));
@@ -217,7 +196,8 @@ void write_mesh_animation_glb(const std::filesystem::path& path, const MeshAnima
     tinygltf::Animation anim;
     anim.name = clip.name;
     const int input =
-        buffer.add_accessor(clip.times, kFloat, TINYGLTF_TYPE_SCALAR, 0, /*with_bounds=*/true);
+        buffer.add_accessor(clip.times, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR, 0,
+                            /*with_bounds=*/true);
     std::vector<float> weights(static_cast<std::size_t>(frames) * num_targets, 0.0f);
     for (int f = 0; f < frames; ++f) weights[f * num_targets + first_target + f] = 1;
     gltf::add_linear_channel(&anim, buffer, input, 0, "weights", weights, TINYGLTF_TYPE_SCALAR);

@@ -139,6 +139,41 @@ ExportVertices export_vertices(const Mesh& mesh) {
   return out;
 }
 
+tinygltf::Primitive add_mesh_primitive(BufferWriter& buffer, const Mesh& mesh, bool with_uvs,
+                                       ExportVertices* vertices) {
+  *vertices = export_vertices(mesh);
+  std::vector<float> positions, normals, uvs;
+  for (std::size_t i = 0; i < vertices->source.size(); ++i) {
+    const int v = vertices->source[i];
+    const Eigen::Vector3f p = to_gltf(mesh.positions[v]);
+    const Eigen::Vector3f n = to_gltf(mesh.normals[v]);
+    positions.insert(positions.end(), {p.x(), p.y(), p.z()});
+    normals.insert(normals.end(), {n.x(), n.y(), n.z()});
+    if (with_uvs) {
+      const Vec2f& uv = mesh.uvs[vertices->uv[i]];
+      uvs.insert(uvs.end(), {uv.x(), 1.0f - uv.y()});
+    }
+  }
+  std::vector<std::uint32_t> indices;
+  for (const Tri& t : vertices->triangles)
+    for (int c = 0; c < 3; ++c) indices.push_back(static_cast<std::uint32_t>(t[c]));
+
+  constexpr int kArray = TINYGLTF_TARGET_ARRAY_BUFFER;
+  constexpr int kFloat = TINYGLTF_COMPONENT_TYPE_FLOAT;
+  tinygltf::Primitive primitive;
+  primitive.mode = TINYGLTF_MODE_TRIANGLES;
+  primitive.attributes["POSITION"] =
+      buffer.add_accessor(positions, kFloat, TINYGLTF_TYPE_VEC3, kArray, true);
+  primitive.attributes["NORMAL"] = buffer.add_accessor(normals, kFloat, TINYGLTF_TYPE_VEC3, kArray);
+  if (with_uvs)
+    primitive.attributes["TEXCOORD_0"] =
+        buffer.add_accessor(uvs, kFloat, TINYGLTF_TYPE_VEC2, kArray);
+  primitive.indices =
+      buffer.add_accessor(indices, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR,
+                          TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+  return primitive;
+}
+
 void write_glb(const std::filesystem::path& path, tinygltf::Model& model) {
   tinygltf::TinyGLTF writer;
   std::ostringstream bytes;

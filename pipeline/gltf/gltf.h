@@ -104,8 +104,12 @@ struct ExportVertices {
 };
 ExportVertices export_vertices(const Mesh& mesh);
 
-// A mesh UV (v up from the bottom row, as Mesh stores it) as glTF's (v down from the top row).
-inline Eigen::Vector2f to_gltf_uv(const Vec2f& uv) { return {uv.x(), 1.0f - uv.y()}; }
+// A triangle primitive of `mesh` (our axes, #V normals) in glTF axes: POSITION, NORMAL,
+// TEXCOORD_0 when `with_uvs` (the mesh's UVs, v flipped: glTF counts v from the top row) and
+// the indices. `vertices` receives the split at UV seams (which mesh vertex each exported
+// vertex copies), to write further attributes in the same order.
+tinygltf::Primitive add_mesh_primitive(BufferWriter& buffer, const Mesh& mesh, bool with_uvs,
+                                       ExportVertices* vertices);
 
 // Serialises `model` as binary glTF (.glb) and writes it atomically. Throws IoError naming the
 // file when it cannot be serialised or written.

@@ -97,21 +97,12 @@ void add_mesh(tinygltf::Model& model, BufferWriter& buffer, const Character& cha
   const SkinnedMesh& skin = character.skin;
   Mesh rest = skin.rest;
   if (rest.normals.size() != rest.num_vertices()) compute_vertex_normals(rest);
-  const gltf::ExportVertices vertices = gltf::export_vertices(rest);
   const bool has_uvs = !rest.uvs.empty();
-
-  std::vector<float> positions, normals, uvs, weights;
+  gltf::ExportVertices vertices;
+  tinygltf::Primitive primitive = gltf::add_mesh_primitive(buffer, rest, has_uvs, &vertices);
+  std::vector<float> weights;
   std::vector<std::uint16_t> joints;
-  for (std::size_t i = 0; i < vertices.source.size(); ++i) {
-    const int v = vertices.source[i];
-    const Eigen::Vector3f p = gltf::to_gltf(rest.positions[v]);
-    const Eigen::Vector3f n = gltf::to_gltf(rest.normals[v]);
-    positions.insert(positions.end(), {p.x(), p.y(), p.z()});
-    normals.insert(normals.end(), {n.x(), n.y(), n.z()});
-    if (has_uvs) {
-      const Eigen::Vector2f uv = gltf::to_gltf_uv(rest.uvs[vertices.uv[i]]);
-      uvs.insert(uvs.end(), {uv.x(), uv.y()});
-    }
+  for (const int v : vertices.source) {
     for (int k = 0; k < 4; ++k) {
       // Validators flag unused slots that name a joint: give them joint 0.
       const bool used = skin.weights[v][k] != 0;
@@ -119,29 +110,11 @@ void add_mesh(tinygltf::Model& model, BufferWriter& buffer, const Character& cha
       weights.push_back(skin.weights[v][k]);
     }
   }
-  std::vector<std::uint32_t> indices;
-  for (const Tri& t : vertices.triangles)
-    indices.insert(indices.end(),
-                   {static_cast<std::uint32_t>(t[0]), static_cast<std::uint32_t>(t[1]),
-                    static_cast<std::uint32_t>(t[2])});
-
   constexpr int kArray = TINYGLTF_TARGET_ARRAY_BUFFER;
-  constexpr int kFloat = TINYGLTF_COMPONENT_TYPE_FLOAT;
-  tinygltf::Primitive primitive;
-  primitive.mode = TINYGLTF_MODE_TRIANGLES;
-  primitive.attributes["POSITION"] =
-      buffer.add_accessor(positions, kFloat, TINYGLTF_TYPE_VEC3, kArray, true);
-  primitive.attributes["NORMAL"] = buffer.add_accessor(normals, kFloat, TINYGLTF_TYPE_VEC3, kArray);
-  if (has_uvs)
-    primitive.attributes["TEXCOORD_0"] =
-        buffer.add_accessor(uvs, kFloat, TINYGLTF_TYPE_VEC2, kArray);
   primitive.attributes["JOINTS_0"] = buffer.add_accessor(
       joints, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT, TINYGLTF_TYPE_VEC4, kArray);
   primitive.attributes["WEIGHTS_0"] =
-      buffer.add_accessor(weights, kFloat, TINYGLTF_TYPE_VEC4, kArray);
-  primitive.indices =
-      buffer.add_accessor(indices, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR,
-                          TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+      buffer.add_accessor(weights, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC4, kArray);
 
   tinygltf::Material material;
   material.name = character.name.empty() ? "material" : character.name;
