@@ -295,9 +295,11 @@ PlayerReport run_player(const Asset& asset, const ControlScript& script,
   duration = std::min(duration, options.max_duration);
   const int frames = static_cast<int>(std::floor(duration * fps + 1e-9)) + 1;
 
-  ensure_directory(options.out_dir);
+  const bool write_files = !options.out_dir.empty();
+  const bool write_meshes = write_files && options.write_meshes;
   const std::filesystem::path mesh_dir = options.out_dir / "meshes";
-  if (options.write_meshes) ensure_directory(mesh_dir);
+  if (write_files) ensure_directory(options.out_dir);
+  if (write_meshes) ensure_directory(mesh_dir);
   std::string csv =
       "frame,time,space,t,p,p_target,phase,fading,fade_weight,root_x,root_y,heading,turn_rate,"
       "searches,switches,arrivals,refused,search_us,path_s,path_error,event\n";
@@ -407,7 +409,7 @@ PlayerReport run_player(const Asset& asset, const ControlScript& script,
                        out.root.x, out.root.y, out.root.heading, s.turn_rate, events.searches,
                        events.switches, events.arrivals, events.refused,
                        events.search_seconds * 1e6, follow.s, follow.lateral_error, event_text);
-    if (options.write_meshes && f % options.mesh_every == 0) {
+    if (write_meshes && f % options.mesh_every == 0) {
       character_world_positions(out, &mesh.positions);
       character_world_normals(out, &mesh.normals);
       write_ply(mesh_dir / fmt::format("frame_{:05d}.ply", f), mesh);
@@ -436,6 +438,7 @@ PlayerReport run_player(const Asset& asset, const ControlScript& script,
   report.reach = controller.reach_status();
   report.clamped = character.clamp_count();
 
+  if (!write_files) return report;
   write_file_atomic(options.out_dir / "frames.csv", csv);
   write_file_atomic(options.out_dir / "transitions.jsonl", transitions);
   nlohmann::json summary;

@@ -82,7 +82,7 @@ struct FrameObserver {
 };
 
 struct PlayerOptions {
-  std::filesystem::path out_dir;
+  std::filesystem::path out_dir;  // empty: write nothing (e.g. when an observer takes the frames)
   double fps = 0;            // > 0: overrides the script's
   double duration = -1;      // >= 0: overrides the script's
   bool write_meshes = true;

@@ -13,15 +13,27 @@ PACKAGES=(
   colmap
   snakemake
   ffmpeg
+  nodejs
 )
 missing=()
 for p in "${PACKAGES[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
+# Debian's npm, unless a node.js that bundles its own npm is installed (it conflicts with it).
+command -v npm >/dev/null || missing+=(npm)
 if [ ${#missing[@]} -gt 0 ]; then
   echo "fourd setup: installing ${missing[*]}"
   $SUDO apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
 else
   echo "fourd setup: all Debian packages present"
+fi
+
+# The Khronos glTF validator (the gltf_export test runs it on fourd-export's output): an npm
+# package, installed globally outside the repository, at a pinned version.
+GLTF_VALIDATOR_VERSION=2.0.0-dev.3.10
+if [ "$(npm ls -g --depth=0 gltf-validator 2>/dev/null | grep -o 'gltf-validator@.*')" != \
+     "gltf-validator@$GLTF_VALIDATOR_VERSION" ]; then
+  echo "fourd setup: installing gltf-validator@$GLTF_VALIDATOR_VERSION (npm)"
+  $SUDO npm install -g --no-fund --no-audit "gltf-validator@$GLTF_VALIDATOR_VERSION"
 fi

@@ -1,13 +1,6 @@
 #include "stages/synth/gltf_io.h"
 
-// The one translation unit that compiles tinygltf. Debian ships no stb headers, so images are
-// encoded and decoded with OpenCV instead (an image loader callback on read; on write the PNG
-// bytes go straight into a buffer view, which needs no image writer).
-#define TINYGLTF_IMPLEMENTATION
-#define TINYGLTF_NO_STB_IMAGE
-#define TINYGLTF_NO_STB_IMAGE_WRITE
 #include <fmt/format.h>
-#include <tiny_gltf.h>
 
 #include <Eigen/SVD>
 #include <algorithm>
@@ -18,19 +11,21 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <set>
-#include <sstream>
 
 #include "pipeline/core/error.h"
 #include "pipeline/core/files.h"
+#include "pipeline/gltf/gltf.h"
 #include "stages/synth/imported_clip.h"
 
 namespace fourd::synth {
 namespace {
 
 // ---------------------------------------------------------------------------------------------
-// Axes. our = kOurFromGltf * gltf: glTF +z (front) -> our +x, +x (left) -> +y, +y (up) -> +z.
+// Axes (pipeline/gltf/gltf.h): our = kOurFromGltf * gltf.
 
-const Eigen::Matrix3d kOurFromGltf = (Eigen::Matrix3d() << 0, 0, 1, 1, 0, 0, 0, 1, 0).finished();
+using gltf::BufferWriter;
+using gltf::kOurFromGltf;
+using gltf::to_gltf_axes;
 
 Eigen::Matrix4d homogeneous(const Eigen::Matrix3d& linear) {
   Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
@@ -40,16 +35,6 @@ Eigen::Matrix4d homogeneous(const Eigen::Matrix3d& linear) {
 
 const Eigen::Matrix4d kOurFromGltf4 = homogeneous(kOurFromGltf);
 const Eigen::Matrix4d kGltfFromOur4 = homogeneous(kOurFromGltf.transpose());
-const Eigen::Quaterniond kOurFromGltfQ(kOurFromGltf);
-
-// A rigid transform of our world expressed in glTF axes (and back): conjugation by the axes
-// rotation, so a joint frame axis-aligned here is axis-aligned there.
-Eigen::Matrix4d to_gltf_axes(const Eigen::Matrix4d& ours) {
-  return kGltfFromOur4 * ours * kOurFromGltf4;
-}
-Eigen::Quaterniond to_gltf_axes(const Eigen::Quaterniond& ours) {
-  return kOurFromGltfQ.conjugate() * ours * kOurFromGltfQ;
-}
 
 // The rotation closest to `m` (removes the scale of armatures exported in centimetres and the
 // rounding of float storage).
@@ -62,53 +47,6 @@ Eigen::Matrix3d nearest_rotation(const Eigen::Matrix3d& m) {
 
 // ---------------------------------------------------------------------------------------------
 // Writing.
-
-// Appends typed arrays to the single buffer of `model`, each with its own buffer view and
-// accessor.
-class BufferWriter {
- public:
-  explicit BufferWriter(tinygltf::Model& model) : model_(model) { model_.buffers.resize(1); }
-
-  int add_view(const void* bytes, std::size_t size, int target) {
-    std::vector<unsigned char>& data = model_.buffers[0].data;
-    data.resize((data.size() + 3) / 4 * 4, 0);  // accessors must start 4-byte aligned
-    tinygltf::BufferView view;
-    view.buffer = 0;
-    view.byteOffset = data.size();
-    view.byteLength = size;
-    view.target = target;
-    const auto* begin = static_cast<const unsigned char*>(bytes);
-    data.insert(data.end(), begin, begin + size);
-    model_.bufferViews.push_back(view);
-    return static_cast<int>(model_.bufferViews.size()) - 1;
-  }
-
-  // `values` holds count * components(type) elements of `T`.
-  template <class T>
-  int add_accessor(const std::vector<T>& values, int component_type, int type, int target,
-                   bool with_bounds = false) {
-    const int components = tinygltf::GetNumComponentsInType(type);
-    tinygltf::Accessor accessor;
-    accessor.bufferView = add_view(values.data(), values.size() * sizeof(T), target);
-    accessor.componentType = component_type;
-    accessor.type = type;
-    accessor.count = values.size() / components;
-    if (with_bounds) {  // required for POSITION and animation inputs
-      accessor.minValues.assign(components, std::numeric_limits<double>::infinity());
-      accessor.maxValues.assign(components, -std::numeric_limits<double>::infinity());
-      for (std::size_t i = 0; i < values.size(); ++i) {
-        const int c = static_cast<int>(i % components);
-        accessor.minValues[c] = std::min(accessor.minValues[c], static_cast<double>(values[i]));
-        accessor.maxValues[c] = std::max(accessor.maxValues[c], static_cast<double>(values[i]));
-      }
-    }
-    model_.accessors.push_back(accessor);
-    return static_cast<int>(model_.accessors.size()) - 1;
-  }
-
- private:
-  tinygltf::Model& model_;
-};
 
 void check_character(const std::string& file, const Character& character,
                      const std::vector<MotionClip>& clips) {
@@ -155,58 +93,16 @@ void check_character(const std::string& file, const Character& character,
   }
 }
 
-// glTF attributes are per vertex; a mesh with per-corner UVs is split at its UV seams.
-struct ExportVertices {
-  std::vector<int> source;     // per exported vertex: the mesh vertex it copies
-  std::vector<int> uv;         // per exported vertex: its UV index (-1 without UVs)
-  std::vector<Tri> triangles;  // in exported vertex indices
-};
-
-ExportVertices export_vertices(const Mesh& mesh) {
-  ExportVertices out;
-  const int n = static_cast<int>(mesh.num_vertices());
-  if (mesh.uv_triangles.empty()) {
-    out.source.resize(n);
-    std::iota(out.source.begin(), out.source.end(), 0);
-    out.uv = mesh.uvs.empty() ? std::vector<int>(n, -1) : out.source;
-    out.triangles = mesh.triangles;
-    return out;
-  }
-  std::map<std::pair<int, int>, int> index;  // (vertex, uv) -> exported vertex
-  out.triangles.resize(mesh.num_triangles());
-  for (std::size_t f = 0; f < mesh.num_triangles(); ++f) {
-    for (int c = 0; c < 3; ++c) {
-      const std::pair<int, int> key{mesh.triangles[f][c], mesh.uv_triangles[f][c]};
-      auto [it, added] = index.emplace(key, static_cast<int>(out.source.size()));
-      if (added) {
-        out.source.push_back(key.first);
-        out.uv.push_back(key.second);
-      }
-      out.triangles[f][c] = it->second;
-    }
-  }
-  return out;
-}
-
 void add_mesh(tinygltf::Model& model, BufferWriter& buffer, const Character& character) {
   const SkinnedMesh& skin = character.skin;
   Mesh rest = skin.rest;
   if (rest.normals.size() != rest.num_vertices()) compute_vertex_normals(rest);
-  const ExportVertices vertices = export_vertices(rest);
   const bool has_uvs = !rest.uvs.empty();
-
-  std::vector<float> positions, normals, uvs, weights;
+  gltf::ExportVertices vertices;
+  tinygltf::Primitive primitive = gltf::add_mesh_primitive(buffer, rest, has_uvs, &vertices);
+  std::vector<float> weights;
   std::vector<std::uint16_t> joints;
-  for (std::size_t i = 0; i < vertices.source.size(); ++i) {
-    const int v = vertices.source[i];
-    const Eigen::Vector3f p = kOurFromGltf.transpose().cast<float>() * rest.positions[v];
-    const Eigen::Vector3f n = kOurFromGltf.transpose().cast<float>() * rest.normals[v];
-    positions.insert(positions.end(), {p.x(), p.y(), p.z()});
-    normals.insert(normals.end(), {n.x(), n.y(), n.z()});
-    if (has_uvs) {
-      const Vec2f uv = rest.uvs[vertices.uv[i]];
-      uvs.insert(uvs.end(), {uv.x(), 1.0f - uv.y()});  // glTF: v down from the top row
-    }
+  for (const int v : vertices.source) {
     for (int k = 0; k < 4; ++k) {
       // Validators flag unused slots that name a joint: give them joint 0.
       const bool used = skin.weights[v][k] != 0;
@@ -214,29 +110,11 @@ void add_mesh(tinygltf::Model& model, BufferWriter& buffer, const Character& cha
       weights.push_back(skin.weights[v][k]);
     }
   }
-  std::vector<std::uint32_t> indices;
-  for (const Tri& t : vertices.triangles)
-    indices.insert(indices.end(),
-                   {static_cast<std::uint32_t>(t[0]), static_cast<std::uint32_t>(t[1]),
-                    static_cast<std::uint32_t>(t[2])});
-
   constexpr int kArray = TINYGLTF_TARGET_ARRAY_BUFFER;
-  constexpr int kFloat = TINYGLTF_COMPONENT_TYPE_FLOAT;
-  tinygltf::Primitive primitive;
-  primitive.mode = TINYGLTF_MODE_TRIANGLES;
-  primitive.attributes["POSITION"] =
-      buffer.add_accessor(positions, kFloat, TINYGLTF_TYPE_VEC3, kArray, true);
-  primitive.attributes["NORMAL"] = buffer.add_accessor(normals, kFloat, TINYGLTF_TYPE_VEC3, kArray);
-  if (has_uvs)
-    primitive.attributes["TEXCOORD_0"] =
-        buffer.add_accessor(uvs, kFloat, TINYGLTF_TYPE_VEC2, kArray);
   primitive.attributes["JOINTS_0"] = buffer.add_accessor(
       joints, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT, TINYGLTF_TYPE_VEC4, kArray);
   primitive.attributes["WEIGHTS_0"] =
-      buffer.add_accessor(weights, kFloat, TINYGLTF_TYPE_VEC4, kArray);
-  primitive.indices =
-      buffer.add_accessor(indices, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR,
-                          TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+      buffer.add_accessor(weights, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC4, kArray);
 
   tinygltf::Material material;
   material.name = character.name.empty() ? "material" : character.name;
@@ -246,20 +124,7 @@ void add_mesh(tinygltf::Model& model, BufferWriter& buffer, const Character& cha
     std::vector<unsigned char> png;
     if (!cv::imencode(".png", character.texture, png))
       throw InputError(fmt::format("cannot encode the texture of '{}' as PNG", character.name));
-    tinygltf::Image image;
-    image.name = "texture";
-    image.mimeType = "image/png";
-    image.bufferView = buffer.add_view(png.data(), png.size(), 0);
-    model.images.push_back(image);
-    tinygltf::Sampler sampler;
-    sampler.magFilter = TINYGLTF_TEXTURE_FILTER_LINEAR;
-    sampler.minFilter = TINYGLTF_TEXTURE_FILTER_LINEAR_MIPMAP_LINEAR;
-    model.samplers.push_back(sampler);
-    tinygltf::Texture texture;
-    texture.source = 0;
-    texture.sampler = 0;
-    model.textures.push_back(texture);
-    material.pbrMetallicRoughness.baseColorTexture.index = 0;
+    material.pbrMetallicRoughness.baseColorTexture.index = buffer.add_png_texture(png, "texture");
   }
   model.materials.push_back(material);
   primitive.material = 0;
@@ -281,7 +146,7 @@ void add_skeleton(tinygltf::Model& model, BufferWriter& buffer, const Character&
   for (int j = 0; j < joints; ++j) {
     tinygltf::Node node;
     node.name = skeleton.names[j];
-    const Eigen::Vector3d t = kOurFromGltf.transpose() * skeleton.rest_offsets[j];
+    const Eigen::Vector3d t = gltf::to_gltf(skeleton.rest_offsets[j]);
     node.translation = {t.x(), t.y(), t.z()};
     model.nodes.push_back(node);
     if (j > 0) model.nodes[skeleton.parents[j]].children.push_back(j);
@@ -317,65 +182,25 @@ void add_animation(tinygltf::Model& model, BufferWriter& buffer, const MotionCli
   for (int f = 0; f < frames; ++f) times[f] = static_cast<float>(f / clip.fps);
   const int input =
       buffer.add_accessor(times, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR, 0, true);
-  auto add_channel = [&](int node, const char* path, const std::vector<float>& values, int type) {
-    tinygltf::AnimationSampler sampler;
-    sampler.input = input;
-    sampler.output = buffer.add_accessor(values, TINYGLTF_COMPONENT_TYPE_FLOAT, type, 0);
-    sampler.interpolation = "LINEAR";
-    animation.samplers.push_back(sampler);
-    tinygltf::AnimationChannel channel;
-    channel.sampler = static_cast<int>(animation.samplers.size()) - 1;
-    channel.target_node = node;
-    channel.target_path = path;
-    animation.channels.push_back(channel);
-  };
   for (int j = 0; j < joints; ++j) {
-    std::vector<float> rotations;
-    Eigen::Quaterniond previous = Eigen::Quaterniond::Identity();
-    for (int f = 0; f < frames; ++f) {
-      Eigen::Quaterniond q = to_gltf_axes(clip.poses[f].local_rotations[j].normalized());
-      // Same hemisphere as the previous key, so every interpolator takes the short way.
-      if (f > 0 && q.dot(previous) < 0) q.coeffs() *= -1;
-      previous = q;
-      rotations.insert(rotations.end(), {static_cast<float>(q.x()), static_cast<float>(q.y()),
-                                         static_cast<float>(q.z()), static_cast<float>(q.w())});
-    }
-    add_channel(j, "rotation", rotations, TINYGLTF_TYPE_VEC4);
+    std::vector<Eigen::Quaterniond> rotations(frames);
+    for (int f = 0; f < frames; ++f) rotations[f] = clip.poses[f].local_rotations[j];
+    gltf::add_linear_channel(&animation, buffer, input, j, "rotation",
+                             gltf::rotation_keys(rotations), TINYGLTF_TYPE_VEC4);
   }
   std::vector<float> translations;
   for (const Pose& pose : clip.poses) {
-    const Eigen::Vector3d t = kOurFromGltf.transpose() * pose.root_position;
+    const Eigen::Vector3d t = gltf::to_gltf(pose.root_position);
     translations.insert(translations.end(), {static_cast<float>(t.x()), static_cast<float>(t.y()),
                                              static_cast<float>(t.z())});
   }
-  add_channel(0, "translation", translations, TINYGLTF_TYPE_VEC3);
+  gltf::add_linear_channel(&animation, buffer, input, 0, "translation", translations,
+                           TINYGLTF_TYPE_VEC3);
   model.animations.push_back(animation);
 }
 
 // ---------------------------------------------------------------------------------------------
 // Reading.
-
-// Decodes embedded and external images with OpenCV. The pixels are stored as 8-bit BGR
-// (component 3), the order the rest of this file expects.
-bool decode_image(tinygltf::Image* image, const int index, std::string* err, std::string*, int, int,
-                  const unsigned char* bytes, int size, void*) {
-  const cv::Mat encoded(1, size, CV_8UC1, const_cast<unsigned char*>(bytes));
-  cv::Mat bgr = cv::imdecode(encoded, cv::IMREAD_COLOR);
-  if (bgr.empty()) {
-    if (err)
-      *err += fmt::format("cannot decode image {} ('{}', {})\n", index, image->name,
-                          image->mimeType.empty() ? image->uri : image->mimeType);
-    return false;
-  }
-  if (!bgr.isContinuous()) bgr = bgr.clone();
-  image->width = bgr.cols;
-  image->height = bgr.rows;
-  image->component = 3;
-  image->bits = 8;
-  image->pixel_type = TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
-  image->image.assign(bgr.data, bgr.data + bgr.total() * bgr.elemSize());
-  return true;
-}
 
 const char* type_name(int type) {
   switch (type) {
@@ -1277,33 +1102,12 @@ void write_gltf_character(const fs::path& path, const Character& character,
   add_mesh(model, buffer, character);
   for (const MotionClip& clip : clips) add_animation(model, buffer, clip);
 
-  tinygltf::TinyGLTF writer;
-  std::ostringstream bytes;
-  if (!writer.WriteGltfSceneToStream(&model, bytes, false, true))
-    throw IoError(fmt::format("cannot serialise the glTF model for {}", file));
-  write_file_atomic(path, bytes.str());
+  gltf::write_glb(path, model);
 }
 
 ImportedCharacter read_gltf_character(const fs::path& path, const GltfImportOptions& options) {
   const std::string file = path.string();
-  const std::string bytes = read_file(path);
-  tinygltf::TinyGLTF loader;
-  loader.SetImageLoader(decode_image, nullptr);
-  tinygltf::Model model;
-  std::string err, warn;
-  const auto* data = reinterpret_cast<const unsigned char*>(bytes.data());
-  const bool binary = bytes.size() >= 4 && bytes.compare(0, 4, "glTF") == 0;
-  const std::string base_dir = path.parent_path().string();
-  const bool ok = binary
-                      ? loader.LoadBinaryFromMemory(&model, &err, &warn, data,
-                                                    static_cast<unsigned>(bytes.size()), base_dir)
-                      : loader.LoadASCIIFromString(&model, &err, &warn, bytes.data(),
-                                                   static_cast<unsigned>(bytes.size()), base_dir);
-  if (!ok) {
-    while (!err.empty() && err.back() == '\n') err.pop_back();
-    throw InputError(
-        fmt::format("{}: not a readable glTF file: {}", file, err.empty() ? "unknown error" : err));
-  }
+  const tinygltf::Model model = gltf::read_gltf(path);
   return CharacterImporter(file, model, options).run();
 }
 

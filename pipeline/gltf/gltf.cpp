@@ -1,0 +1,208 @@
+// The one translation unit that compiles tinygltf (see gltf.h for how images are handled).
+#define TINYGLTF_IMPLEMENTATION
+#include "pipeline/gltf/gltf.h"
+
+#include <fmt/format.h>
+
+#include <map>
+#include <numeric>
+#include <opencv2/imgcodecs.hpp>
+#include <sstream>
+
+#include "pipeline/core/error.h"
+#include "pipeline/core/files.h"
+
+namespace fourd::gltf {
+namespace {
+
+Eigen::Matrix4d homogeneous(const Eigen::Matrix3d& linear) {
+  Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
+  m.topLeftCorner<3, 3>() = linear;
+  return m;
+}
+
+// Decodes embedded and external images with OpenCV. The pixels are stored as 8-bit BGR
+// (component 3).
+bool decode_image(tinygltf::Image* image, const int index, std::string* err, std::string*, int, int,
+                  const unsigned char* bytes, int size, void*) {
+  const cv::Mat encoded(1, size, CV_8UC1, const_cast<unsigned char*>(bytes));
+  cv::Mat bgr = cv::imdecode(encoded, cv::IMREAD_COLOR);
+  if (bgr.empty()) {
+    if (err)
+      *err += fmt::format("cannot decode image {} ('{}', {})\n", index, image->name,
+                          image->mimeType.empty() ? image->uri : image->mimeType);
+    return false;
+  }
+  if (!bgr.isContinuous()) bgr = bgr.clone();
+  image->width = bgr.cols;
+  image->height = bgr.rows;
+  image->component = 3;
+  image->bits = 8;
+  image->pixel_type = TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
+  image->image.assign(bgr.data, bgr.data + bgr.total() * bgr.elemSize());
+  return true;
+}
+
+}  // namespace
+
+Eigen::Matrix4d to_gltf_axes(const Eigen::Matrix4d& ours) {
+  return homogeneous(kOurFromGltf.transpose()) * ours * homogeneous(kOurFromGltf);
+}
+
+Eigen::Quaterniond to_gltf_axes(const Eigen::Quaterniond& ours) {
+  const Eigen::Quaterniond our_from_gltf(kOurFromGltf);
+  return our_from_gltf.conjugate() * ours * our_from_gltf;
+}
+
+int BufferWriter::add_view(const void* bytes, std::size_t size, int target) {
+  std::vector<unsigned char>& data = model_.buffers[0].data;
+  data.resize((data.size() + 3) / 4 * 4, 0);  // accessors must start 4-byte aligned
+  tinygltf::BufferView view;
+  view.buffer = 0;
+  view.byteOffset = data.size();
+  view.byteLength = size;
+  view.target = target;
+  const auto* begin = static_cast<const unsigned char*>(bytes);
+  data.insert(data.end(), begin, begin + size);
+  model_.bufferViews.push_back(view);
+  return static_cast<int>(model_.bufferViews.size()) - 1;
+}
+
+int BufferWriter::add_png_texture(std::span<const unsigned char> png, const std::string& name) {
+  tinygltf::Image image;
+  image.name = name;
+  image.mimeType = "image/png";
+  image.bufferView = add_view(png.data(), png.size(), 0);
+  model_.images.push_back(image);
+  tinygltf::Sampler sampler;
+  sampler.magFilter = TINYGLTF_TEXTURE_FILTER_LINEAR;
+  sampler.minFilter = TINYGLTF_TEXTURE_FILTER_LINEAR_MIPMAP_LINEAR;
+  model_.samplers.push_back(sampler);
+  tinygltf::Texture texture;
+  texture.source = static_cast<int>(model_.images.size()) - 1;
+  texture.sampler = static_cast<int>(model_.samplers.size()) - 1;
+  model_.textures.push_back(texture);
+  return static_cast<int>(model_.textures.size()) - 1;
+}
+
+void add_linear_channel(tinygltf::Animation* animation, BufferWriter& buffer, int input, int node,
+                        const char* path, const std::vector<float>& values, int type) {
+  tinygltf::AnimationSampler sampler;
+  sampler.input = input;
+  sampler.output = buffer.add_accessor(values, TINYGLTF_COMPONENT_TYPE_FLOAT, type, 0);
+  sampler.interpolation = "LINEAR";
+  animation->samplers.push_back(sampler);
+  tinygltf::AnimationChannel channel;
+  channel.sampler = static_cast<int>(animation->samplers.size()) - 1;
+  channel.target_node = node;
+  channel.target_path = path;
+  animation->channels.push_back(channel);
+}
+
+std::vector<float> rotation_keys(std::span<const Eigen::Quaterniond> ours) {
+  std::vector<float> keys;
+  keys.reserve(4 * ours.size());
+  Eigen::Quaterniond previous = Eigen::Quaterniond::Identity();
+  for (std::size_t f = 0; f < ours.size(); ++f) {
+    Eigen::Quaterniond q = to_gltf_axes(ours[f].normalized());
+    if (f > 0 && q.dot(previous) < 0) q.coeffs() *= -1;
+    previous = q;
+    keys.insert(keys.end(), {static_cast<float>(q.x()), static_cast<float>(q.y()),
+                             static_cast<float>(q.z()), static_cast<float>(q.w())});
+  }
+  return keys;
+}
+
+ExportVertices export_vertices(const Mesh& mesh) {
+  ExportVertices out;
+  const int n = static_cast<int>(mesh.num_vertices());
+  if (mesh.uv_triangles.empty()) {
+    out.source.resize(n);
+    std::iota(out.source.begin(), out.source.end(), 0);
+    out.uv = mesh.uvs.empty() ? std::vector<int>(n, -1) : out.source;
+    out.triangles = mesh.triangles;
+    return out;
+  }
+  std::map<std::pair<int, int>, int> index;  // (vertex, uv) -> exported vertex
+  out.triangles.resize(mesh.num_triangles());
+  for (std::size_t f = 0; f < mesh.num_triangles(); ++f) {
+    for (int c = 0; c < 3; ++c) {
+      const std::pair<int, int> key{mesh.triangles[f][c], mesh.uv_triangles[f][c]};
+      auto [it, added] = index.emplace(key, static_cast<int>(out.source.size()));
+      if (added) {
+        out.source.push_back(key.first);
+        out.uv.push_back(key.second);
+      }
+      out.triangles[f][c] = it->second;
+    }
+  }
+  return out;
+}
+
+tinygltf::Primitive add_mesh_primitive(BufferWriter& buffer, const Mesh& mesh, bool with_uvs,
+                                       ExportVertices* vertices) {
+  *vertices = export_vertices(mesh);
+  std::vector<float> positions, normals, uvs;
+  for (std::size_t i = 0; i < vertices->source.size(); ++i) {
+    const int v = vertices->source[i];
+    const Eigen::Vector3f p = to_gltf(mesh.positions[v]);
+    const Eigen::Vector3f n = to_gltf(mesh.normals[v]);
+    positions.insert(positions.end(), {p.x(), p.y(), p.z()});
+    normals.insert(normals.end(), {n.x(), n.y(), n.z()});
+    if (with_uvs) {
+      const Vec2f& uv = mesh.uvs[vertices->uv[i]];
+      uvs.insert(uvs.end(), {uv.x(), 1.0f - uv.y()});
+    }
+  }
+  std::vector<std::uint32_t> indices;
+  for (const Tri& t : vertices->triangles)
+    for (int c = 0; c < 3; ++c) indices.push_back(static_cast<std::uint32_t>(t[c]));
+
+  constexpr int kArray = TINYGLTF_TARGET_ARRAY_BUFFER;
+  constexpr int kFloat = TINYGLTF_COMPONENT_TYPE_FLOAT;
+  tinygltf::Primitive primitive;
+  primitive.mode = TINYGLTF_MODE_TRIANGLES;
+  primitive.attributes["POSITION"] =
+      buffer.add_accessor(positions, kFloat, TINYGLTF_TYPE_VEC3, kArray, true);
+  primitive.attributes["NORMAL"] = buffer.add_accessor(normals, kFloat, TINYGLTF_TYPE_VEC3, kArray);
+  if (with_uvs)
+    primitive.attributes["TEXCOORD_0"] =
+        buffer.add_accessor(uvs, kFloat, TINYGLTF_TYPE_VEC2, kArray);
+  primitive.indices =
+      buffer.add_accessor(indices, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR,
+                          TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+  return primitive;
+}
+
+void write_glb(const std::filesystem::path& path, tinygltf::Model& model) {
+  tinygltf::TinyGLTF writer;
+  std::ostringstream bytes;
+  if (!writer.WriteGltfSceneToStream(&model, bytes, false, true))
+    throw IoError(fmt::format("cannot serialise the glTF model for {}", path.string()));
+  write_file_atomic(path, bytes.str());
+}
+
+tinygltf::Model read_gltf(const std::filesystem::path& path) {
+  const std::string file = path.string();
+  const std::string bytes = read_file(path);
+  tinygltf::TinyGLTF loader;
+  loader.SetImageLoader(decode_image, nullptr);
+  tinygltf::Model model;
+  std::string err, warn;
+  const auto* data = reinterpret_cast<const unsigned char*>(bytes.data());
+  const bool binary = bytes.size() >= 4 && bytes.compare(0, 4, "glTF") == 0;
+  const std::string base_dir = path.parent_path().string();
+  const bool ok = binary
+                      ? loader.LoadBinaryFromMemory(&model, &err, &warn, data,
+                                                    static_cast<unsigned>(bytes.size()), base_dir)
+                      : loader.LoadASCIIFromString(&model, &err, &warn, bytes.data(),
+                                                   static_cast<unsigned>(bytes.size()), base_dir);
+  if (!ok) {
+    while (!err.empty() && err.back() == '\n') err.pop_back();
+    throw InputError(
+        fmt::format("{}: not a readable glTF file: {}", file, err.empty() ? "unknown error" : err));
+  }
+  return model;
+}
+
+}  // namespace fourd::gltf

@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# glTF export of the tiny sample's asset (made by e2e_tiny_sample, the fixture): every take and
+# the timeline script's result as clips; the Khronos validator finds no error; re-imported with
+# tinygltf the mesh and the clips are the asset's; bad input is refused with a clear message.
+# usage: gltf_export.sh <tiny session> <work dir>   (FOURD_BIN: folder of the executables)
+set -euo pipefail
+session="$1"
+work="$2"
+bin="${FOURD_BIN:?FOURD_BIN must name the folder of the fourd executables}"
+here="$(cd "$(dirname "$0")" && pwd)"
+asset="$session/asset/motion_graph.fourd"
+test -f "$asset" || { echo "no $asset: run the e2e_tiny_sample test first"; exit 1; }
+rm -rf "$work"
+mkdir -p "$work"
+
+echo "== export"
+"$bin/fourd-export" "$asset" -o "$work/tiny.glb" --script "$session/play/timeline.txt"
+echo "== Khronos validator"
+node "$here/validate_gltf.js" "$work/tiny.glb"
+echo "== re-import"
+"$bin/gltf_check" "$asset" "$work/tiny.glb" timeline
+
+echo "== bad input"
+expect_failure() {  # expected exit code, text the message must contain, command...
+  local code="$1" text="$2"
+  shift 2
+  set +e
+  out=$("$@" 2>&1)
+  status=$?
+  set -e
+  echo "$out"
+  [ "$status" -eq "$code" ] || { echo "exit $status, expected $code"; exit 1; }
+  echo "$out" | grep -qF -- "$text" || { echo "the message does not say '$text'"; exit 1; }
+}
+head -c 5000 "$asset" > "$work/truncated.fourd"
+expect_failure 4 "$work/truncated.fourd" "$bin/fourd-export" "$work/truncated.fourd" -o "$work/t.glb"
+test ! -e "$work/t.glb" || { echo "a .glb was written for a corrupt asset"; exit 1; }
+touch "$work/a_file"
+expect_failure 5 "$work/a_file" "$bin/fourd-export" "$asset" -o "$work/a_file/out.glb"
+echo "gltf export ok"
