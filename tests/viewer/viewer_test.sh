@@ -1,16 +1,19 @@
 #!/usr/bin/env bash
 # fourd-view under Xvfb (Mesa's software OpenGL): (1) a screenshot of the tiny session's character
 # at a fixed frame, with the default camera, matches the committed reference render within a
-# tolerance, and one at another frame does not; (2) the panels draw; (3) an asset without key
-# textures is shaded from its normals; (4) corrupt and missing assets and an unwritable screenshot
-# are refused with a message naming the file and their exit code.
-# usage: viewer_test.sh <fourd-view> <tiny session asset> <tests dir> <work dir>
+# tolerance, and one at another frame does not; (2) the panels draw; (3) the renderer blends key
+# textures on the GPU with the weights given (viewer_key_blend_check); (4) an asset without key
+# textures is shaded from its normals; (5) corrupt and missing assets and an unwritable
+# screenshot are refused with a message naming the file and their exit code.
+# usage: viewer_test.sh <fourd-view> <viewer_key_blend_check> <tiny session asset> <tests dir>
+#        <work dir>
 # Exit 77 (skipped) when xvfb-run is missing.
 set -euo pipefail
 view="$1"
-asset="$2"
-tests="$3"
-work="$4"
+key_blend_check="$2"
+asset="$3"
+tests="$4"
+work="$5"
 reference="$tests/viewer/reference_tiny.png"
 if ! command -v xvfb-run > /dev/null; then
   echo "SKIPPED: xvfb-run is missing (Debian package xvfb; scripts/setup.sh installs it)"
@@ -48,6 +51,9 @@ run "$asset" --screenshot "$work/ui.png" --frames 45 > /dev/null 2>&1
 read -r mean psnr < <(compare "$work/ui.png" "$work/frame45.png")
 echo "with panels against without: mean abs error $mean"
 if within "$mean" "$psnr" 0.002 40; then echo "no panels drawn"; exit 1; fi
+
+echo "== key textures blended on the GPU"
+xvfb-run -a -s "-screen 0 1280x720x24" "$key_blend_check"
 
 echo "== an asset without key textures is shaded from its normals"
 plain="$tests/fuzz/corpus/asset/tube_graph_no_turns.fourd"
