@@ -20,7 +20,7 @@ int main(int argc, char** argv) {
       "wheel zooms. Headless (xvfb-run): --screenshot FILE --frames N, or --benchmark SECONDS.",
       "fourd-view"};
   viewer::ViewerOptions options;
-  std::string asset_path, screenshot;
+  std::string asset_path, screenshot, script;
   bool no_ui = false, no_vsync = false, verbose = false;
   const std::map<std::string, CameraMode> cameras{{"follow", CameraMode::kFollow},
                                                   {"orbit", CameraMode::kOrbit}};
@@ -47,6 +47,9 @@ int main(int argc, char** argv) {
                  "motion space to start in (default: locomotion, else the first)");
   app.add_option("--parameter", options.start_parameter,
                  "its parameter (default: the middle of its range)");
+  app.add_option("--script", script,
+                 "a control script of fourd-play (runtime/player.h): its start, path and events "
+                 "drive the character");
   app.add_flag("--no-ui", no_ui, "hide the panels (the scene only)");
   app.add_flag("--no-vsync", no_vsync, "do not wait for the display between frames");
   app.add_flag("-v,--verbose", verbose, "debug messages");
@@ -58,6 +61,7 @@ int main(int argc, char** argv) {
   if (verbose) log::set_level(log::Level::kDebug);
   options.asset = asset_path;
   options.screenshot = screenshot;
+  options.script = script;
   options.show_ui = !no_ui;
   options.vsync = !no_vsync;
   try {

@@ -23,6 +23,7 @@
 #include "runtime/asset.h"
 #include "runtime/character.h"
 #include "runtime/controller.h"
+#include "runtime/player.h"
 #include "runtime/root_math.h"
 #include "runtime/viewer/renderer.h"
 
@@ -84,7 +85,8 @@ struct ImGuiSession {
 
 class App {
  public:
-  App(const Asset& asset, const ViewerOptions& options, GLFWwindow* window);
+  App(const Asset& asset, const ViewerOptions& options, const ControlScript* script,
+      GLFWwindow* window);
   // One frame: input, `dt` seconds of motion time, drawing. `frame_seconds` is the wall-clock
   // time of the previous frame (for the HUD).
   void frame(double dt, double frame_seconds);
@@ -102,11 +104,14 @@ class App {
   void draw_controls();
   void draw_transition();
   void follow_path();
+  void play_event(const ScriptEvent& e);
   Eigen::Vector3f reach_world() const;
   const GraphSpace& space(int s) const { return asset_.graph.spaces[s]; }
 
   const Asset& asset_;
   const ViewerOptions& options_;
+  const ControlScript* script_;  // may be null
+  std::size_t next_event_ = 0;
   GLFWwindow* window_;
   Character character_;
   Controller controller_;
@@ -153,9 +158,11 @@ class App {
   bool mouse_dragged_ = false;
 };
 
-App::App(const Asset& asset, const ViewerOptions& options, GLFWwindow* window)
+App::App(const Asset& asset, const ViewerOptions& options, const ControlScript* script,
+         GLFWwindow* window)
     : asset_(asset),
       options_(options),
+      script_(script),
       window_(window),
       character_(asset.graph, asset.transitions),
       controller_(character_) {
@@ -176,11 +183,30 @@ App::App(const Asset& asset, const ViewerOptions& options, GLFWwindow* window)
     space_parameter_.push_back(
         static_cast<float>(0.5 * (space(s).parameter_min() + space(s).parameter_max())));
   }
-  const double p0 = std::isnan(options.start_parameter) ? space_parameter_[start]
-                                                        : options.start_parameter;
-  const RequestStatus started = character_.reset(start, p0);
+  double p0 = std::isnan(options.start_parameter) ? space_parameter_[start]
+                                                  : options.start_parameter;
+  double t0 = 0;
+  RootTransform root0;
+  if (script) {
+    // As fourd-play starts it: the script's space, parameter and time, on its path facing along.
+    start = graph.find_space(script->start_space);
+    p0 = std::isnan(script->start_p) ? space_parameter_[start] : script->start_p;
+    t0 = script->start_t;
+    if (!script->path.empty()) {
+      path_ = GroundPath(script->path);
+      const Point2 a = path_.point_at(0);
+      root0 = {a.x, a.y, path_.heading_at(0)};
+      heading_ = static_cast<float>(root0.heading);
+      camera_.follow_heading = heading_;
+    }
+  }
+  const RequestStatus started = character_.reset(start, p0, t0, root0);
   if (started.clamped) log::warn("start parameter {} clamped to {}", p0, started.applied);
-  if (start == locomotion_) {
+  if (script && !script->path.empty()) {
+    controller_.follow(&path_);
+    following_ = true;
+    if (start == locomotion_) speed_ = static_cast<float>(started.applied);
+  } else if (start == locomotion_) {
     speed_ = static_cast<float>(started.applied);
     controller_.walk(speed_, heading_);
   }
@@ -195,7 +221,6 @@ App::App(const Asset& asset, const ViewerOptions& options, GLFWwindow* window)
   log::info("{}: no key textures in the asset: shading from the blended normals",
             options.asset.string());
   camera_.mode = options.camera;
-  camera_.follow_heading = 0;
   lines_.reserve(4096);
   points_.reserve(256);
   character_.step(0);
@@ -215,7 +240,15 @@ void App::frame(double dt, double frame_seconds) {
   handle_input(dt);
 
   const double step = paused_ ? 0.0 : dt * time_scale_;
-  const CharacterFrame& out = character_.step(step);
+  // A script's events up to this frame, each at its own motion time (as fourd-play plays them).
+  const double frame_time = character_.time() + step;
+  while (script_ && step > 0 && next_event_ < script_->events.size() &&
+         script_->events[next_event_].time <= frame_time + 1e-12) {
+    const ScriptEvent& e = script_->events[next_event_++];
+    character_.step(std::max(e.time - character_.time(), 0.0));
+    play_event(e);
+  }
+  const CharacterFrame& out = character_.step(std::max(frame_time - character_.time(), 0.0));
   if (walk_pending_) apply_walk();
   renderer_.update_character(out);
   if (following_ && controller_.follow_status().done) following_ = false;
@@ -387,6 +420,39 @@ void App::follow_path() {
   request_text_ = fmt::format("follow a path of {} curves, {:.2f} m", path_.curves().size(),
                               path_.length());
   route_.clear();
+}
+
+void App::play_event(const ScriptEvent& e) {
+  const std::string what = fmt::format("{}:{}", script_->name, e.line);
+  switch (e.command) {
+    case ScriptCommand::kParam:
+      request_status(character_.set_parameters(e.a), what + " param", character_.state().space);
+      break;
+    case ScriptCommand::kMotion: {
+      const int target = asset_.graph.find_space(e.space);
+      request_status(character_.request_motion(target, e.a, e.b), what + " " + e.space, target);
+      break;
+    }
+    case ScriptCommand::kTurn:
+      character_.set_turn_rate(e.a * kDeg);
+      break;
+    case ScriptCommand::kWalk:
+      speed_ = static_cast<float>(e.a);
+      heading_ = static_cast<float>(e.b * kDeg);
+      following_ = false;
+      walk_pending_ = false;
+      request_status(controller_.walk(e.a, e.b * kDeg), what + " walk", locomotion_);
+      break;
+    case ScriptCommand::kJump:
+      request_status(controller_.jump(e.a), what + " jump",
+                     asset_.graph.find_space(ControllerOptions{}.jump_space));
+      break;
+    case ScriptCommand::kReach:
+      following_ = false;
+      request_status(controller_.reach(e.a, e.b, e.c), what + " reach",
+                     asset_.graph.find_space(ControllerOptions{}.reach_space));
+      break;
+  }
 }
 
 Eigen::Vector3f App::reach_world() const {
@@ -671,6 +737,11 @@ ViewerReport run_viewer(const ViewerOptions& options) {
   log::info("asset {}: {} motion spaces, {} edges, {} vertices, loaded in {:.2f} s",
             options.asset.string(), asset.graph.spaces.size(), asset.graph.edges.size(),
             asset.graph.num_vertices(), load_timer.seconds());
+  ControlScript script;
+  if (!options.script.empty()) {
+    script = read_control_script(options.script);
+    check_control_script(script, asset.graph);
+  }
   if (!options.screenshot.empty()) {
     // Fail on an unwritable output before any frame is drawn.
     const std::filesystem::path dir = options.screenshot.parent_path();
@@ -702,7 +773,7 @@ ViewerReport run_viewer(const ViewerOptions& options) {
 
   ViewerReport report;
   {
-    App app(asset, options, window);
+    App app(asset, options, options.script.empty() ? nullptr : &script, window);
     report.textured = app.textured();
     report.vertices = asset.graph.num_vertices();
     report.triangles = static_cast<int>(asset.graph.spaces.front().motion.triangles.size());

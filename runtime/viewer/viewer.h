@@ -28,6 +28,10 @@ struct ViewerOptions {
   std::string start_space;  // empty: the locomotion space, else the first
   double start_parameter = std::numeric_limits<double>::quiet_NaN();  // NaN: middle of range
   bool vsync = true;  // interactive only; headless runs never wait for the display
+  // A control script of the headless player (runtime/player.h): its start, path and timed
+  // events drive the character as they would fourd-play (fps and duration are ignored). Empty:
+  // none.
+  std::filesystem::path script;
 
   // Throws ConfigError naming the field.
   void check() const;
@@ -45,8 +49,8 @@ struct ViewerReport {
 };
 
 // Runs the viewer until the window is closed (or the screenshot is written, or the benchmark
-// time is up). Throws InputError / IoError naming the asset for a bad asset, IoError when the
-// screenshot cannot be written, Error when no OpenGL 3.3 window can be opened.
+// time is up). Throws InputError / IoError naming the file for a bad asset or script, IoError
+// when the screenshot cannot be written, Error when no OpenGL 3.3 window can be opened.
 ViewerReport run_viewer(const ViewerOptions& options);
 
 }  // namespace fourd::viewer
