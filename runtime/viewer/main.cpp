@@ -43,6 +43,9 @@ int main(int argc, char** argv) {
   app.add_option("--camera", options.camera, "follow (behind the character) or orbit")
       ->transform(CLI::CheckedTransformer(cameras, CLI::ignore_case))
       ->default_str("follow");
+  app.add_option("--distance", options.camera_distance, "camera distance [m]")
+      ->default_val(options.camera_distance)
+      ->check(CLI::Range(1.0, 60.0));
   app.add_option("--start", options.start_space,
                  "motion space to start in (default: locomotion, else the first)");
   app.add_option("--parameter", options.start_parameter,

@@ -37,6 +37,9 @@ void ViewerOptions::check() const {
   if (!screenshot.empty() && frames < 1) throw ConfigError("frames must be >= 1 with a screenshot");
   if (benchmark_seconds < 0) throw ConfigError("benchmark seconds must be >= 0");
   if (fixed_step < 0 || fixed_step > 1) throw ConfigError("fixed step must lie in [0, 1] s");
+  if (!(camera_distance >= 1 && camera_distance <= 60)) {
+    throw ConfigError(fmt::format("camera distance {} not in [1, 60] m", camera_distance));
+  }
 }
 
 namespace {
@@ -221,6 +224,7 @@ App::App(const Asset& asset, const ViewerOptions& options, const ControlScript* 
   log::info("{}: no key textures in the asset: shading from the blended normals",
             options.asset.string());
   camera_.mode = options.camera;
+  camera_.distance = options.camera_distance;
   lines_.reserve(4096);
   points_.reserve(256);
   character_.step(0);
@@ -687,7 +691,8 @@ void App::draw_transition() {
   ImGui::SetNextWindowPos(ImVec2(10, static_cast<float>(height_) - 190), ImGuiCond_FirstUseEver);
   ImGui::Begin("Transition", nullptr,
                ImGuiWindowFlags_AlwaysAutoResize | ImGuiWindowFlags_NoSavedSettings);
-  ImGui::TextUnformatted(request_text_.c_str());
+  ImGui::TextUnformatted(request_text_.empty() ? "requested by the controller (path, reach)"
+                                                : request_text_.c_str());
   if (!route_.empty()) {
     std::string route;
     for (int s : route_) route += (route.empty() ? "" : " -> ") + space(s).name();

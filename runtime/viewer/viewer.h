@@ -25,6 +25,7 @@ struct ViewerOptions {
                           // screenshot: 1/30), else by the measured frame time
   bool show_ui = true;    // ImGui panels
   CameraMode camera = CameraMode::kFollow;
+  float camera_distance = OrbitCamera{}.distance;  // [m] from the point looked at
   std::string start_space;  // empty: the locomotion space, else the first
   double start_parameter = std::numeric_limits<double>::quiet_NaN();  // NaN: middle of range
   bool vsync = true;  // interactive only; headless runs never wait for the display
