@@ -33,10 +33,13 @@ TEST(ViewerMath, PickingAPixelFindsTheGroundPointDrawnThere) {
     EXPECT_NEAR(picked.x, g.x(), 1e-3);
     EXPECT_NEAR(picked.y, g.y(), 1e-3);
   }
-  // The sky (top of the image, the camera looking down at 0.5 rad) hits no ground.
-  Point2 none;
-  EXPECT_FALSE(pick_ground(camera.view(), camera.projection(static_cast<float>(w) / h), 640, 0, w,
-                           h, &none));
+  // Looking down at 0.1 rad with a vertical field of view of 0.8 rad, the top of the image is
+  // sky: no ground there, but ground at the bottom.
+  camera.pitch = 0.1f;
+  const Mat4f projection = camera.projection(static_cast<float>(w) / h);
+  Point2 ground;
+  EXPECT_FALSE(pick_ground(camera.view(), projection, 640, 0, w, h, &ground));
+  EXPECT_TRUE(pick_ground(camera.view(), projection, 640, h - 1, w, h, &ground));
 }
 
 TEST(ViewerMath, OrbitCameraLooksAtItsTargetFromItsDistance) {
