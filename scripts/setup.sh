@@ -9,6 +9,7 @@ PACKAGES=(
   libopenimageio-dev openimageio-tools libyaml-cpp-dev nlohmann-json3-dev libcli11-dev
   libtbb-dev libfmt-dev libxxhash-dev libtinygltf-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  libglfw3-dev libimgui-dev libepoxy-dev xvfb xauth libgl1-mesa-dri
   clang libclang-rt-14-dev
   colmap
   snakemake
