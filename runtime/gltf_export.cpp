@@ -1,5 +1,7 @@
 #include "runtime/gltf_export.h"
 
+#include <opencv2/imgcodecs.hpp>
+
 #include <fmt/format.h>
 
 #include <cmath>
@@ -75,7 +77,31 @@ Mesh asset_template(const Asset& asset) {
   mesh.normals = points_from_planes(space.normals_for(frame), blend.plane_stride,
                                     blend.num_vertices);
   for (Vec3f& n : mesh.normals) n = unit_normal(n);
+  const AssetTextures& textures = asset.graph.textures;
+  if (!textures.empty()) {  // the atlas: one UV per triangle corner
+    mesh.uvs = textures.corner_uvs;
+    mesh.uv_triangles.resize(mesh.triangles.size());
+    for (std::size_t f = 0; f < mesh.triangles.size(); ++f) {
+      const int c = static_cast<int>(3 * f);
+      mesh.uv_triangles[f] = Tri(c, c + 1, c + 2);
+    }
+  }
   return mesh;
+}
+
+std::vector<unsigned char> asset_template_texture_png(const Asset& asset) {
+  const AssetTextures& textures = asset.graph.textures;
+  if (textures.empty() || asset.graph.spaces.empty()) return {};
+  const GraphSpace& space = asset.graph.spaces.front();
+  std::vector<float> w(space.num_inputs(), 0.0f);
+  w[0] = 1.0f;
+  TextureBlend blend;
+  texture_blend_add(textures, 0, space.motion.cyclic, 0.0, w, 1.0f, &blend);
+  cv::Mat image;
+  blend_texture_image(textures, blend, &image);
+  std::vector<unsigned char> png;
+  if (!cv::imencode(".png", image, png)) throw IoError("cannot encode the template's texture as PNG");
+  return png;
 }
 
 std::vector<MeshClip> asset_take_clips(const Asset& asset) {

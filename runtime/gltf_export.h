@@ -56,8 +56,12 @@ struct MeshAnimation {
 
 // Every input of every space of the asset as a clip named after its take, in the graph's order.
 std::vector<MeshClip> asset_take_clips(const Asset& asset);
-// The template: input 0, sample 0 of the first space (root frame), with its normals.
+// The template: input 0, sample 0 of the first space (root frame), with its normals and, when
+// the asset has textures, the atlas's UVs (per triangle corner).
 Mesh asset_template(const Asset& asset);
+// That frame's texture (the first space's first take at t = 0) as PNG bytes; empty when the
+// asset has no textures.
+std::vector<unsigned char> asset_template_texture_png(const Asset& asset);
 
 // Plays `script` on the asset (runtime/player.h's run_player; `options.out_dir` empty writes
 // nothing) and keeps every frame as a clip named `name`.

@@ -49,6 +49,7 @@ int main(int argc, char** argv) {
     MeshAnimation animation;
     animation.name = asset.graph.name;
     animation.base = asset_template(asset);
+    animation.texture_png = asset_template_texture_png(asset);
     animation.clips = asset_take_clips(asset);
     if (!script_path.empty()) {
       const ControlScript script = read_control_script(script_path);
@@ -59,8 +60,9 @@ int main(int argc, char** argv) {
     int frames = 0;
     for (const MeshClip& clip : animation.clips) frames += clip.num_frames();
     write_mesh_animation_glb(out_path, animation);
-    log::info("{}: {} vertices, {} clips, {} morph targets, {:.1f} MB in {:.1f} s", out_path,
+    log::info("{}: {} vertices, {} clips, {} morph targets, {}, {:.1f} MB in {:.1f} s", out_path,
               animation.base.num_vertices(), animation.clips.size(), frames,
+              animation.texture_png.empty() ? "no texture" : "textured",
               std::filesystem::file_size(out_path) / 1e6, timer.seconds());
     return kExitOk;
   } catch (const Error& e) {

@@ -221,8 +221,17 @@ App::App(const Asset& asset, const ViewerOptions& options, const ControlScript* 
   renderer_.set_mesh(m.triangles, m.blend.num_vertices);
   // Key textures, when the asset carries them, are uploaded here once; an asset without them is
   // shaded from the blended normals.
-  log::info("{}: no key textures in the asset: shading from the blended normals",
-            options.asset.string());
+  const AssetTextures& textures = graph.textures;
+  if (!textures.empty()) {
+    std::vector<const std::uint8_t*> images;
+    for (const cv::Mat& image : textures.images) images.push_back(image.ptr<std::uint8_t>());
+    renderer_.upload_key_textures(textures.width, textures.height, images, textures.corner_uvs);
+    log::info("{}: {} key textures of {}x{}, blended on the GPU", options.asset.string(),
+              textures.images.size(), textures.width, textures.height);
+  } else {
+    log::info("{}: no key textures in the asset: shading from the blended normals",
+              options.asset.string());
+  }
   camera_.mode = options.camera;
   camera_.distance = options.camera_distance;
   lines_.reserve(4096);
@@ -255,6 +264,11 @@ void App::frame(double dt, double frame_seconds) {
   const CharacterFrame& out = character_.step(std::max(frame_time - character_.time(), 0.0));
   if (walk_pending_) apply_walk();
   renderer_.update_character(out);
+  if (renderer_.textured()) {
+    const auto count = static_cast<std::size_t>(out.textures.count);
+    renderer_.set_key_blend({out.textures.images.data(), count},
+                            {out.textures.weights.data(), count});
+  }
   if (following_ && controller_.follow_status().done) following_ = false;
 
   const Point2 root{out.root.x, out.root.y};

@@ -38,6 +38,11 @@ int main(int argc, char** argv) {
       const bool split = p.attributes.count("TEXCOORD_0") > 0;
       fmt::print("vertices: glb {}, asset {}{}\n", vertices, asset_vertices,
                  split ? " (split at UV seams)" : "");
+      if (!asset.graph.textures.empty() && (!split || model.images.size() != 1 ||
+                                             model.materials.size() != 1))
+        failures.push_back(fmt::format("the asset has textures: expected UVs and one image, got "
+                                       "{} UVs, {} images",
+                                       split ? "" : "no", model.images.size()));
       if (split ? vertices < asset_vertices : vertices != asset_vertices)
         failures.push_back(fmt::format("{} vertices, the asset has {}", vertices, asset_vertices));
       fmt::print("morph targets: {} ({} take frames)\n", p.targets.size(), take_frames);

@@ -36,6 +36,8 @@ within() {  # within MEAN PSNR MAX_MEAN MIN_PSNR
 echo "== the character at frame 45 against the reference render"
 run "$asset" --no-ui --screenshot "$work/frame45.png" --frames 45 2>&1 | tee "$work/frame45.log"
 test -s "$work/frame45.png" || { echo "no screenshot written"; exit 1; }
+grep -q "key textures of .* blended on the GPU" "$work/frame45.log" ||
+  { echo "the tiny asset's key textures were not uploaded"; exit 1; }
 read -r mean psnr < <(compare "$work/frame45.png" "$reference")
 echo "mean abs error $mean, PSNR $psnr dB (want <= 0.006 and >= 30 dB)"
 within "$mean" "$psnr" 0.006 30 || { echo "the render differs from $reference"; exit 1; }
