@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <map>
 #include <set>
 
 #include "pipeline/core/error.h"
@@ -78,12 +79,18 @@ Mesh asset_template(const Asset& asset) {
                                     blend.num_vertices);
   for (Vec3f& n : mesh.normals) n = unit_normal(n);
   const AssetTextures& textures = asset.graph.textures;
-  if (!textures.empty()) {  // the atlas: one UV per triangle corner
-    mesh.uvs = textures.corner_uvs;
+  if (!textures.empty()) {
+    // The atlas stores one UV per triangle corner; corners with the same UV share one index, so
+    // the export splits vertices only at chart seams.
+    std::map<std::pair<float, float>, int> index;
     mesh.uv_triangles.resize(mesh.triangles.size());
     for (std::size_t f = 0; f < mesh.triangles.size(); ++f) {
-      const int c = static_cast<int>(3 * f);
-      mesh.uv_triangles[f] = Tri(c, c + 1, c + 2);
+      for (int c = 0; c < 3; ++c) {
+        const Vec2f& uv = textures.corner_uvs[3 * f + c];
+        const auto [it, added] = index.try_emplace({uv.x(), uv.y()}, static_cast<int>(mesh.uvs.size()));
+        if (added) mesh.uvs.push_back(uv);
+        mesh.uv_triangles[f][c] = it->second;
+      }
     }
   }
   return mesh;
