@@ -472,9 +472,10 @@ void save_plan(const fs::path& file, const Plan& plan, const Registrations& reg)
   w.save(file, kPlanMagic, kJobFileVersion);
 }
 
-// Reads the plan and the tree job's registrations; checks it against the options in force.
+// Reads the plan, the tree job's registrations and the template; checks the plan against the
+// options in force.
 Plan load_plan(const fs::path& out, const AlignOptions& options, Registrations* reg,
-               int* template_vertices) {
+               Mesh* template_mesh) {
   const fs::path file = plan_file(out);
   if (!fs::is_regular_file(file)) {
     throw InputError(fmt::format("{}: no plan (run the --tree job first)", file.string()));
@@ -531,10 +532,9 @@ Plan load_plan(const fs::path& out, const AlignOptions& options, Registrations* 
   for (std::size_t k = 0; k < n; ++k) {
     if (plan.tree.parent[k] >= 0) plan.tree.children[plan.tree.parent[k]].push_back(static_cast<int>(k));
   }
-  const Mesh template_mesh = read_ply(out / "template.ply");
-  *template_vertices = static_cast<int>(template_mesh.num_vertices());
+  *template_mesh = read_ply(out / "template.ply");
   *reg = Registrations(static_cast<int>(n));
-  read_results(r, plan, *reg, *template_vertices);
+  read_results(r, plan, *reg, static_cast<int>(template_mesh->num_vertices()));
   r.expect_end();
   return plan;
 }
@@ -753,13 +753,13 @@ void run_tree_job(const fs::path& in, const fs::path& out, const StageArgs& args
 void run_branch_job(const fs::path& out, int branch, const AlignOptions& options) {
   log::Timer timer;
   Registrations reg(0);
-  int vertices = 0;
-  Plan plan = load_plan(out, options, &reg, &vertices);
+  Mesh template_mesh;
+  Plan plan = load_plan(out, options, &reg, &template_mesh);
   if (branch >= plan.branches) {
     throw UsageError(fmt::format("--branch {}: the plan has {} branch jobs (0 to {})", branch,
                                  plan.branches, plan.branches - 1));
   }
-  const TemplateModel model = build_template_model(read_ply(out / "template.ply"), options.registration);
+  const TemplateModel model = build_template_model(template_mesh, options.registration);
   std::vector<int> starts, mine;
   const int n = static_cast<int>(plan.usable.size());
   for (int k = 0; k < n; ++k) {
@@ -786,8 +786,8 @@ void run_branch_job(const fs::path& out, int branch, const AlignOptions& options
 void run_finish_job(const fs::path& out, const StageArgs& args, const AlignOptions& options) {
   log::Timer timer;
   Registrations reg(0);
-  int vertices = 0;
-  Plan plan = load_plan(out, options, &reg, &vertices);
+  Mesh template_mesh;
+  Plan plan = load_plan(out, options, &reg, &template_mesh);
   double job_seconds = plan.seconds;
   for (int b = 0; b < plan.branches; ++b) {
     const fs::path file = branch_file(out, b);
@@ -800,10 +800,9 @@ void run_finish_job(const fs::path& out, const StageArgs& args, const AlignOptio
                                    file.string(), plan_file(out).string(), b));
     }
     job_seconds += r.read<double>();
-    read_results(r, plan, reg, vertices);
+    read_results(r, plan, reg, static_cast<int>(template_mesh.num_vertices()));
     r.expect_end();
   }
-  const Mesh template_mesh = read_ply(out / "template.ply");
   const TemplateModel model = build_template_model(template_mesh, options.registration);
   std::vector<FrameData>& frames = plan.frames;
   const ShapeTree& tree = plan.tree;
