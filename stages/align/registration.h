@@ -31,9 +31,9 @@ struct RegistrationOptions {
   int graph_nodes = 250;      // deformation graph nodes
   int node_influences = 4;    // nodes blended per vertex
   int rigid_iterations = 10;  // rigid ICP iterations before the non-rigid fit
-  std::vector<double> stiffness = {4, 1.5, 0.5, 0.15};  // graph regulariser weight per level
+  std::vector<double> stiffness = {8, 4, 1.5, 0.5, 0.15};  // graph regulariser weight per level
   int iterations_per_level = 5;  // Gauss-Newton iterations per level
-  double max_distance = 0.10;    // correspondences farther are ignored, first level [m]
+  double max_distance = 0.25;    // correspondences farther are ignored, first level [m]
   double final_max_distance = 0.03;  // ... last level and refinement [m]
   double normal_angle = 60;      // largest angle between matched normals [deg]
   double robust_scale = 0.01;    // Cauchy scale of the residuals [m]
