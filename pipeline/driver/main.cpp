@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <memory>
 
+#include "pipeline/core/guarded.h"
 #include "pipeline/core/log.h"
 #include "pipeline/driver/driver.h"
 #include "pipeline/driver/workflow.h"
@@ -167,7 +168,7 @@ int main(int argc, char** argv) {
   }
   request.oracle.insert(oracle.begin(), oracle.end());
 
-  try {
+  return run_guarded("fourd", [&]() -> int {
     if (*run) return command_run(session_dir, request, built);
     if (*workflow) {
       workflow_request.oracle.insert(workflow_oracle.begin(), workflow_oracle.end());
@@ -181,11 +182,5 @@ int main(int argc, char** argv) {
       return kExitOk;
     }
     return command_status(session_dir, built);
-  } catch (const Error& e) {
-    log::error("fourd: {}", e.what());
-    return e.exit_code();
-  } catch (const std::exception& e) {
-    log::error("fourd: internal error: {}", e.what());
-    return kExitFailure;
-  }
+  });
 }

@@ -7,6 +7,7 @@
 
 #include "pipeline/core/error.h"
 #include "pipeline/core/files.h"
+#include "pipeline/core/guarded.h"
 #include "pipeline/core/log.h"
 #include "runtime/asset.h"
 #include "runtime/gltf_export.h"
@@ -40,7 +41,7 @@ int main(int argc, char** argv) {
     return app.exit(e) == 0 ? kExitOk : kExitUsage;
   }
   if (verbose) log::set_level(log::Level::kDebug);
-  try {
+  return run_guarded("fourd-export", [&]() -> int {
     log::Timer timer;
     // An output folder that cannot be made fails now, not after the work.
     const std::filesystem::path out_dir = std::filesystem::path(out_path).parent_path();
@@ -65,11 +66,5 @@ int main(int argc, char** argv) {
               animation.texture_png.empty() ? "no texture" : "textured",
               std::filesystem::file_size(out_path) / 1e6, timer.seconds());
     return kExitOk;
-  } catch (const Error& e) {
-    log::error("fourd-export: {}", e.what());
-    return e.exit_code();
-  } catch (const std::exception& e) {
-    log::error("fourd-export: internal error: {}", e.what());
-    return kExitFailure;
-  }
+  });
 }

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "pipeline/core/error.h"
+#include "pipeline/core/guarded.h"
 #include "pipeline/core/log.h"
 #include "runtime/asset.h"
 #include "runtime/player.h"
@@ -90,7 +91,7 @@ int main(int argc, char** argv) {
     render.height = h;
   }
   render.dir = render_dir;
-  try {
+  return run_guarded("fourd-play", [&]() -> int {
     log::Timer timer;
     const Asset asset = load_asset(asset_path);
     log::info("asset {}: {} motion spaces, {} edges, {} vertices, loaded in {:.2f} s",
@@ -114,11 +115,5 @@ int main(int argc, char** argv) {
     log::info("fourd-play finished in {:.1f} s ({} warnings)", timer.seconds(),
               log::warning_count());
     return kExitOk;
-  } catch (const Error& e) {
-    log::error("fourd-play: {}", e.what());
-    return e.exit_code();
-  } catch (const std::exception& e) {
-    log::error("fourd-play: internal error: {}", e.what());
-    return kExitFailure;
-  }
+  });
 }

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "pipeline/core/error.h"
+#include "pipeline/core/guarded.h"
 #include "pipeline/core/log.h"
 #include "runtime/viewer/viewer.h"
 
@@ -67,7 +68,7 @@ int main(int argc, char** argv) {
   options.script = script;
   options.show_ui = !no_ui;
   options.vsync = !no_vsync;
-  try {
+  return run_guarded("fourd-view", [&]() -> int {
     const viewer::ViewerReport report = viewer::run_viewer(options);
     log::info("{} frames in {:.2f} s: {:.1f} FPS (mean frame {:.2f} ms, longest {:.2f} ms), {}",
               report.frames, report.seconds, report.fps, report.mean_frame_ms,
@@ -78,11 +79,5 @@ int main(int argc, char** argv) {
                   report.vertices, report.triangles, report.textured ? "textured" : "shaded");
     }
     return kExitOk;
-  } catch (const Error& e) {
-    log::error("fourd-view: {}", e.what());
-    return e.exit_code();
-  } catch (const std::exception& e) {
-    log::error("fourd-view: internal error: {}", e.what());
-    return kExitFailure;
-  }
+  });
 }

@@ -7,6 +7,7 @@
 #include <memory>
 
 #include "pipeline/core/error.h"
+#include "pipeline/core/guarded.h"
 #include "pipeline/core/log.h"
 
 namespace fourd {
@@ -123,7 +124,7 @@ int run_stage_main(int argc, char** argv, const StageInfo& info,
     threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                     args.threads);
   }
-  try {
+  const int code = run_guarded(fmt::format("fourd-{}", info.name), [&]() -> int {
     args.selection = parse_frame_selection(take, frames);
     if (args.finish && !args.selection.whole()) {
       throw UsageError("--finish processes no frame: it takes no --take/--frames");
@@ -143,17 +144,10 @@ int run_stage_main(int argc, char** argv, const StageInfo& info,
     body(session, args);
     log::info("fourd-{} finished in {:.1f} s ({} warnings)", info.name, timer.seconds(),
               log::warning_count());
-    log::open_file({});
     return kExitOk;
-  } catch (const Error& e) {
-    log::error("fourd-{}: {}", info.name, e.what());
-    log::open_file({});
-    return e.exit_code();
-  } catch (const std::exception& e) {
-    log::error("fourd-{}: internal error: {}", info.name, e.what());
-    log::open_file({});
-    return kExitFailure;
-  }
+  });
+  log::open_file({});  // after the error, if any, is logged there
+  return code;
 }
 
 }  // namespace fourd
