@@ -167,6 +167,26 @@ std::map<std::string, CameraReprojection> reprojection_errors(const std::vector<
   return out;
 }
 
+std::string refinement_rejection(const std::vector<Camera>& before,
+                                 const std::vector<Camera>& after,
+                                 const CalibrationCheckOptions& options, std::size_t points) {
+  for (std::size_t i = 0; i < before.size() && i < after.size(); ++i) {
+    const double shift = (after[i].center() - before[i].center()).norm();
+    const double turn = Eigen::AngleAxisd(after[i].camera_from_world.linear() *
+                                          before[i].camera_from_world.linear().transpose())
+                            .angle() *
+                        180.0 / M_PI;
+    if (shift > options.max_refine_shift || turn > options.max_refine_turn_deg) {
+      return fmt::format(
+          "refinement rejected: it moves camera {} by {:.3f} m and turns it by {:.2f} deg "
+          "(limits {:.3f} m, {:.2f} deg): the {} triangulated points do not constrain the rig",
+          before[i].name, shift, turn, options.max_refine_shift, options.max_refine_turn_deg,
+          points);
+    }
+  }
+  return {};
+}
+
 CalibrationCheckResult check_calibration(const std::string& colmap,
                                          const std::vector<Camera>& cameras,
                                          const std::vector<cv::Mat>& images,
@@ -247,6 +267,13 @@ CalibrationCheckResult check_calibration(const std::string& colmap,
     }
   }
 
+  if (refine && result.points < static_cast<std::size_t>(options.min_refine_points)) {
+    result.warnings.push_back(fmt::format(
+        "refinement skipped: {} triangulated points, fewer than {} "
+        "(calibration_check.min_refine_points); bundle adjustment would fit the noise of so few",
+        result.points, options.min_refine_points));
+    refine = false;
+  }
   if (refine) {
     ensure_directory(work / "adjusted");
     run_colmap_checked(
@@ -284,7 +311,18 @@ CalibrationCheckResult check_calibration(const std::string& colmap,
       auto it = refined_by_name.find(c.name);
       result.refined_calibration.push_back(it == refined_by_name.end() ? c : it->second);
     }
-    write_colmap_model(work / "refined", result.refined_calibration);
+    // Few or badly spread points let bundle adjustment move cameras far to fit them: such a
+    // result is worse than the calibration it started from.
+    const std::string rejected =
+        refinement_rejection(cameras, result.refined_calibration, options, result.points);
+    if (!rejected.empty()) {
+      result.warnings.push_back(rejected);
+      result.refined_calibration.clear();
+      result.refined.clear();
+    }
+    if (!result.refined_calibration.empty()) {
+      write_colmap_model(work / "refined", result.refined_calibration);
+    }
   }
 
   fs::remove(work / "list.txt", ec);

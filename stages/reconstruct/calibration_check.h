@@ -30,6 +30,9 @@ struct CalibrationCheckOptions {
   double warn_error_px = 1.0;   // warn when a camera's mean reprojection error is above
   bool refine = false;          // refine the calibration by bundle adjustment
   bool refine_focal_length = true;  // ... focal lengths too (principal points and distortion stay)
+  int min_refine_points = 100;  // fewer triangulated points: no refinement (it would overfit)
+  double max_refine_shift = 0.10;  // refinement moving a camera farther is rejected [m]
+  double max_refine_turn_deg = 2.0;  // ... or turning it more [deg]
   double max_error_px = 12;     // largest reprojection error triangulation accepts [px]
   int max_features = 8192;      // SIFT features per image
   double peak_threshold = 0.002;  // SIFT peak threshold (COLMAP's default 0.0067 finds few
@@ -45,6 +48,12 @@ struct CalibrationCheckOptions {
       Range{0, 1000});
     v("refine", refine, "refine the calibration with COLMAP's bundle adjustment");
     v("refine_focal_length", refine_focal_length, "refinement also adjusts focal lengths");
+    v("min_refine_points", min_refine_points,
+      "refine only with at least this many triangulated points", Range{0, 1e9});
+    v("max_refine_shift", max_refine_shift,
+      "reject a refinement that moves a camera centre farther than this [m]", Range{0, 1e3});
+    v("max_refine_turn_deg", max_refine_turn_deg,
+      "reject a refinement that turns a camera more than this [deg]", Range{0, 180});
     v("max_error_px", max_error_px, "largest reprojection error triangulation accepts [px]",
       Range{0.5, 1000});
     v("max_features", max_features, "SIFT features per image", Range{100, 100000});
@@ -73,7 +82,7 @@ struct CalibrationCheckResult {
   std::size_t points = 0;  // triangulated points
   std::map<std::string, CameraReprojection> cameras;  // by camera name
   std::map<std::string, CameraReprojection> refined;  // after bundle adjustment (when refined)
-  std::vector<Camera> refined_calibration;
+  std::vector<Camera> refined_calibration;  // empty: not refined (or the refinement rejected)
   std::vector<std::string> warnings;
   nlohmann::json to_json() const;
 };
@@ -85,6 +94,12 @@ struct CalibrationCheckResult {
 // triangulated points), as one message naming the cameras and what to try.
 std::string triangulation_failure(const std::filesystem::path& log, int exit_code,
                                   const std::vector<Camera>& cameras);
+
+// Why a refined calibration (`after`, same order as `before`) must not replace `before`: a
+// camera moved or turned more than the options allow. Empty: accept it.
+std::string refinement_rejection(const std::vector<Camera>& before,
+                                 const std::vector<Camera>& after,
+                                 const CalibrationCheckOptions& options, std::size_t points);
 
 CalibrationCheckResult check_calibration(const std::string& colmap,
                                          const std::vector<Camera>& cameras,

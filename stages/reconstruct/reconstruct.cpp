@@ -455,7 +455,7 @@ void run_calibration_check(const Session& session, const Rig& rig,
               e.mean_error_px, e.observations, after);
   }
   for (const auto& w : result.warnings) log::warn("{}", w);
-  if (refine) {
+  if (!result.refined_calibration.empty()) {
     log::info("refined calibration written to {}", (out_dir / "calibration_check" / "refined").string());
   }
   log::info("calibration check: {} points triangulated, {:.1f} s", result.points, timer.seconds());

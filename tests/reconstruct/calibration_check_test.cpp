@@ -40,5 +40,31 @@ TEST(CalibrationCheck, MatchesWithoutPointsIsExplained) {
   fs::remove(log);
 }
 
+// A refinement that keeps the cameras near where they were is accepted; one that moves or
+// turns a camera beyond the limits (bundle adjustment over too few points) is rejected, naming
+// the camera.
+TEST(CalibrationCheck, RefinementThatMovesACameraFarIsRejected) {
+  std::vector<Camera> before = cameras(3);
+  for (int i = 0; i < 3; ++i) before[i].camera_from_world.translation() = Eigen::Vector3d(i, 0, 3);
+  CalibrationCheckOptions options;  // 0.1 m, 2 deg
+  std::vector<Camera> after = before;
+  after[1].camera_from_world.translation() += Eigen::Vector3d(0.02, 0, 0);
+  after[2].camera_from_world.linear() =
+      Eigen::AngleAxisd(1.0 * M_PI / 180, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  EXPECT_EQ(refinement_rejection(before, after, options, 500), "");
+
+  std::vector<Camera> moved = before;
+  moved[2].camera_from_world.translation() += Eigen::Vector3d(0, 0.3, 0);
+  const std::string why = refinement_rejection(before, moved, options, 23);
+  EXPECT_NE(why.find("camera cam02"), std::string::npos) << why;
+  EXPECT_NE(why.find("23 triangulated points"), std::string::npos) << why;
+
+  std::vector<Camera> turned = before;
+  turned[0].camera_from_world.linear() =
+      Eigen::AngleAxisd(10.0 * M_PI / 180, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  EXPECT_NE(refinement_rejection(before, turned, options, 23).find("camera cam00"),
+            std::string::npos);
+}
+
 }  // namespace
 }  // namespace fourd::reconstruct
