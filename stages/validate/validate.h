@@ -20,9 +20,11 @@
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "pipeline/core/config.h"
+#include "pipeline/core/mesh.h"
 #include "pipeline/core/session.h"
 
 namespace fourd::validate {
@@ -109,6 +111,14 @@ StageReport validate_transitions(const ValidationContext& context);
 // images inside the ground-truth silhouettes (texture.psnr_db), unseen texels, seams, time
 // (validate_texture.cpp).
 StageReport validate_texture(const ValidationContext& context);
+
+// How much a take's baked textures flicker: the mean absolute change of a chart texel's colour
+// between consecutive frames [8-bit levels], over the texels inside the atlas's charts (`atlas`
+// UVs), pooled over every consecutive pair of frames 0..n-1 of each take in `frames_per_take`.
+// Texture files are <dir>/<take>/<frame><extension>.
+double texture_flicker(const std::filesystem::path& dir, const std::string& extension,
+                       const std::vector<std::pair<std::string, int>>& frames_per_take,
+                       const Mesh& atlas);
 
 // Path following of the runtime: every control script with a path in the session's play/
 // folder played on asset/ and asset_oracle/ (distance from the path, length error; top-down

@@ -67,7 +67,52 @@ std::vector<CameraResult> compare_frame(const Session& session, const Mesh& text
   return results;
 }
 
+// Texels inside the atlas's charts (eroded by one texel, away from the gutters).
+cv::Mat chart_mask(const Mesh& atlas, cv::Size size) {
+  cv::Mat mask = cv::Mat::zeros(size, CV_8U);
+  for (const Tri& t : atlas.uv_triangles) {
+    cv::Point corners[3];
+    for (int k = 0; k < 3; ++k) {
+      const Vec2f& uv = atlas.uvs[t[k]];
+      corners[k] = cv::Point(static_cast<int>(std::lround(uv.x() * size.width)),
+                             static_cast<int>(std::lround((1.0f - uv.y()) * size.height)));
+    }
+    cv::fillConvexPoly(mask, corners, 3, cv::Scalar(255));
+  }
+  cv::erode(mask, mask, cv::Mat());
+  return mask;
+}
+
 }  // namespace
+
+double texture_flicker(const fs::path& dir, const std::string& extension,
+                       const std::vector<std::pair<std::string, int>>& frames_per_take,
+                       const Mesh& atlas) {
+  cv::Mat mask;
+  double sum = 0;
+  int pairs = 0;
+  for (const auto& [take, frames] : frames_per_take) {
+    cv::Mat previous;
+    for (int frame = 0; frame < frames; ++frame) {
+      const fs::path file = dir / take / (frame_name(frame) + extension);
+      cv::Mat image = texture::read_texture(file);
+      if (mask.empty()) mask = chart_mask(atlas, image.size());
+      if (image.size() != mask.size()) {
+        throw InputError(fmt::format("{}: {}x{} texels, the take's first texture has {}x{}",
+                                     file.string(), image.cols, image.rows, mask.cols, mask.rows));
+      }
+      if (!previous.empty()) {
+        cv::Mat change;
+        cv::absdiff(image, previous, change);
+        const cv::Scalar m = cv::mean(change, mask);
+        sum += 255.0 * (m[0] + m[1] + m[2]) / 3.0;
+        ++pairs;
+      }
+      previous = std::move(image);
+    }
+  }
+  return pairs ? sum / pairs : 0.0;
+}
 
 StageReport validate_texture(const ValidationContext& ctx) {
   StageReport report;
@@ -165,6 +210,11 @@ StageReport validate_texture(const ValidationContext& ctx) {
     }
     table += fmt::format("| {} | all | | **{:.2f}** | {:.2f} | {:.1f} % |\n", run.label,
                          total.psnr_db(), worst, 100.0 * compared / std::max<std::int64_t>(1, silhouette));
+    std::vector<std::pair<std::string, int>> frames_per_take;
+    for (const std::string& take : takes) {
+      frames_per_take.emplace_back(take, static_cast<int>(stage_report.at("takes").at(take).size()));
+    }
+    const double flicker = texture_flicker(run.dir, extension, frames_per_take, textured);
     const json atlas = read_json(run.dir / "atlas.json");
     report.metrics.push_back({"psnr_db", total.psnr_db(), run.input,
                               "textured mesh rendered into the studio cameras vs the captured "
@@ -175,6 +225,9 @@ StageReport validate_texture(const ValidationContext& ctx) {
                               run.input, "fraction of silhouette pixels the textured mesh covers"});
     report.metrics.push_back({"unseen_texels_pct", 100.0 * stage_report.at("unseen_fraction_mean").get<double>(),
                               run.input, "texels no camera saw (filled), mean over frames [%]"});
+    report.metrics.push_back({"flicker_levels", flicker, run.input,
+                              "mean change of a chart texel between consecutive frames [8-bit "
+                              "levels]; shading changes with the pose too: compare with oracle"});
     report.metrics.push_back({"seam_rms_levels", stage_report.at("seam_rms_after").get<double>(), run.input,
                               "colour difference across chart seams after levelling [8-bit levels]"});
     report.metrics.push_back({"seconds_per_frame", stage_report.at("seconds_per_frame").get<double>(),
