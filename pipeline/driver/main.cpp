@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <memory>
 
+#include "pipeline/core/command_line.h"
 #include "pipeline/core/guarded.h"
 #include "pipeline/core/log.h"
 #include "pipeline/driver/driver.h"
@@ -154,11 +155,7 @@ int main(int argc, char** argv) {
   CLI::App* defaults = app.add_subcommand(
       "defaults", "print every stage's session.yaml options with their defaults (YAML)");
 
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? kExitOk : kExitUsage;
-  }
+  if (const auto code = parse_command_line(app, argc, argv)) return *code;
   if (request.verbose) log::set_level(log::Level::kDebug);
   // --threads also bounds the driver's own work (hashing inputs and outputs).
   std::unique_ptr<tbb::global_control> threads;

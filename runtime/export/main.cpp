@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <string>
 
+#include "pipeline/core/command_line.h"
 #include "pipeline/core/error.h"
 #include "pipeline/core/files.h"
 #include "pipeline/core/guarded.h"
@@ -35,11 +36,7 @@ int main(int argc, char** argv) {
                  "script's)")
       ->check(CLI::NonNegativeNumber);
   app.add_flag("-v,--verbose", verbose, "debug messages");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? kExitOk : kExitUsage;
-  }
+  if (const auto code = parse_command_line(app, argc, argv)) return *code;
   if (verbose) log::set_level(log::Level::kDebug);
   return run_guarded("fourd-export", [&]() -> int {
     log::Timer timer;

@@ -7,6 +7,7 @@
 #include <memory>
 #include <string>
 
+#include "pipeline/core/command_line.h"
 #include "pipeline/core/error.h"
 #include "pipeline/core/guarded.h"
 #include "pipeline/core/log.h"
@@ -66,11 +67,7 @@ int main(int argc, char** argv) {
                  "also encode the rendered frames into this MP4 (needs ffmpeg on PATH; without "
                  "it a warning, and the PNGs are kept)");
   app.add_flag("-v,--verbose", verbose, "debug messages");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? kExitOk : kExitUsage;
-  }
+  if (const auto code = parse_command_line(app, argc, argv)) return *code;
   if (verbose) log::set_level(log::Level::kDebug);
   options.out_dir = out_dir;
   options.write_meshes = !no_meshes;

@@ -6,6 +6,7 @@
 #include <map>
 #include <string>
 
+#include "pipeline/core/command_line.h"
 #include "pipeline/core/error.h"
 #include "pipeline/core/guarded.h"
 #include "pipeline/core/log.h"
@@ -57,11 +58,7 @@ int main(int argc, char** argv) {
   app.add_flag("--no-ui", no_ui, "hide the panels (the scene only)");
   app.add_flag("--no-vsync", no_vsync, "do not wait for the display between frames");
   app.add_flag("-v,--verbose", verbose, "debug messages");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? kExitOk : kExitUsage;
-  }
+  if (const auto code = parse_command_line(app, argc, argv)) return *code;
   if (verbose) log::set_level(log::Level::kDebug);
   options.asset = asset_path;
   options.screenshot = screenshot;

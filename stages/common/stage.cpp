@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <memory>
 
+#include "pipeline/core/command_line.h"
 #include "pipeline/core/error.h"
 #include "pipeline/core/guarded.h"
 #include "pipeline/core/log.h"
@@ -113,11 +114,7 @@ int run_stage_main(int argc, char** argv, const StageInfo& info,
     }
     app.footer(footer);
   }
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? kExitOk : kExitUsage;
-  }
+  if (const auto code = parse_command_line(app, argc, argv)) return *code;
   if (args.verbose) log::set_level(log::Level::kDebug);
   std::unique_ptr<tbb::global_control> threads;
   if (args.threads > 0) {
