@@ -16,6 +16,7 @@
 #include "pipeline/core/image_io.h"
 #include "pipeline/core/mesh_io.h"
 #include "pipeline/render/textured_render.h"
+#include "stages/texture/atlas.h"
 #include "stages/texture/texture_io.h"
 #include "stages/validate/sampling.h"
 #include "stages/validate/validate.h"
@@ -67,19 +68,16 @@ std::vector<CameraResult> compare_frame(const Session& session, const Mesh& text
   return results;
 }
 
-// Texels inside the atlas's charts (eroded by one texel, away from the gutters).
-cv::Mat chart_mask(const Mesh& atlas, cv::Size size) {
-  cv::Mat mask = cv::Mat::zeros(size, CV_8U);
-  for (const Tri& t : atlas.uv_triangles) {
-    cv::Point corners[3];
-    for (int k = 0; k < 3; ++k) {
-      const Vec2f& uv = atlas.uvs[t[k]];
-      corners[k] = cv::Point(static_cast<int>(std::lround(uv.x() * size.width)),
-                             static_cast<int>(std::lround((1.0f - uv.y()) * size.height)));
-    }
-    cv::fillConvexPoly(mask, corners, 3, cv::Scalar(255));
-  }
-  cv::erode(mask, mask, cv::Mat());
+// The texels the bake maps onto the surface (centres inside a chart's triangle), as the
+// texture stage finds them.
+cv::Mat chart_mask(const Mesh& atlas, int resolution) {
+  texture::Atlas charts;
+  charts.resolution = resolution;
+  charts.uvs = atlas.uvs;
+  charts.uv_triangles = atlas.uv_triangles;
+  const texture::TexelMap texels = texture::map_texels(charts, atlas.triangles, /*reach=*/0.0);
+  cv::Mat mask = cv::Mat::zeros(resolution, resolution, CV_8U);
+  for (int t : texels.texel) mask.at<std::uint8_t>(t / resolution, t % resolution) = 255;
   return mask;
 }
 
@@ -96,7 +94,7 @@ double texture_flicker(const fs::path& dir, const std::string& extension,
     for (int frame = 0; frame < frames; ++frame) {
       const fs::path file = dir / take / (frame_name(frame) + extension);
       cv::Mat image = texture::read_texture(file);
-      if (mask.empty()) mask = chart_mask(atlas, image.size());
+      if (mask.empty()) mask = chart_mask(atlas, image.cols);
       if (image.size() != mask.size()) {
         throw InputError(fmt::format("{}: {}x{} texels, the take's first texture has {}x{}",
                                      file.string(), image.cols, image.rows, mask.cols, mask.rows));
