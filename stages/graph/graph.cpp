@@ -241,7 +241,14 @@ void run_graph(const Session& session, const StageArgs& args) {
                          {"keys", textures.empty() ? 0 : options.textures.keys},
                          {"jpeg_quality", textures.jpeg_quality}};
   write_file_atomic(graph_dir / "graph.json", summary.dump(1));
-  if (options.table2.transitions > 0) {
+  // Table 2 compares transition methods between two different spaces; a graph of one motion
+  // class (self-loops only) has none, unless the session lists spaces (then it is an error).
+  const bool between_spaces = std::any_of(asset.graph.edges.begin(), asset.graph.edges.end(),
+                                          [](const GraphEdge& e) { return !e.self_loop; });
+  if (options.table2.transitions > 0 && !between_spaces && options.table2.spaces.empty()) {
+    log::info("Table 2: skipped, the graph has no transition between two different spaces");
+  }
+  if (options.table2.transitions > 0 && (between_spaces || !options.table2.spaces.empty())) {
     log::Timer t2;
     const Table2 table = evaluate_table2(asset.graph, options.transitions, options.table2,
                                          report.similarity_cpu_seconds,
