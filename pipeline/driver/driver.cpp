@@ -297,12 +297,56 @@ std::vector<StageSpec> with_oracle_variants(const fs::path& session_root,
   return out;
 }
 
+bool is_run_measurement(std::string_view key) {
+  auto ends_with = [&](std::string_view tail) {
+    return key.size() >= tail.size() && key.substr(key.size() - tail.size()) == tail;
+  };
+  return key.find("seconds") != std::string_view::npos || ends_with("cpu_s") ||
+         ends_with("_us") || key.find("cost_ratio") != std::string_view::npos ||
+         key == "branch_jobs";
+}
+
+namespace {
+
+void drop_run_measurements(nlohmann::json* j) {
+  if (j->is_object()) {
+    for (auto it = j->begin(); it != j->end();) {
+      if (is_run_measurement(it.key())) {
+        it = j->erase(it);
+      } else {
+        drop_run_measurements(&it.value());
+        ++it;
+      }
+    }
+  } else if (j->is_array()) {
+    for (auto& e : *j) drop_run_measurements(&e);
+  }
+}
+
+}  // namespace
+
+std::uint64_t hash_result_file(const fs::path& path) {
+  const std::string ext = path.extension().string();
+  if (ext == ".log") return hash_bytes("a log");
+  for (const auto& part : path) {
+    if (part == ".jobs") return hash_bytes("a job file");
+  }
+  if (ext == ".json") {
+    nlohmann::json j = nlohmann::json::parse(read_file(path), nullptr, /*allow_exceptions=*/false);
+    if (!j.is_discarded()) {
+      drop_run_measurements(&j);
+      return hash_bytes(j.dump());
+    }
+  }
+  return hash_file(path);
+}
+
 FileHashes hash_folders(const fs::path& session_root, const std::vector<std::string>& folders) {
   std::vector<FileEntry> files = list_files(session_root, folders);
   std::vector<std::uint64_t> hashes(files.size());
   // Captures hold thousands of images: hash them in parallel (hash_file streams each file).
   tbb::parallel_for(std::size_t{0}, files.size(),
-                    [&](std::size_t i) { hashes[i] = hash_file(files[i].path); });
+                    [&](std::size_t i) { hashes[i] = hash_result_file(files[i].path); });
   FileHashes out;
   for (std::size_t i = 0; i < files.size(); ++i)
     out.emplace(files[i].relative, hash_hex(hashes[i]));

@@ -27,6 +27,7 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "pipeline/core/capture.h"
@@ -98,9 +99,22 @@ std::vector<StageSpec> with_oracle_variants(const fs::path& session_root,
 using FileHashes = std::map<std::string, std::string>;
 
 // Hashes every regular file under the session sub-folders `folders` (recursively, following
-// symlinks). Completion records are left out, so one stage's record never looks like a change
-// to the stages that read its folders. Absent folders contribute nothing.
+// symlinks) with hash_result_file. Completion records are left out, so one stage's record
+// never looks like a change to the stages that read its folders. Absent folders contribute
+// nothing.
 FileHashes hash_folders(const fs::path& session_root, const std::vector<std::string>& folders);
+
+// A stage's outputs also record how its run went: the time and CPU it took (keys holding
+// "seconds", ending in "cpu_s" or "_us", cost ratios of two timings), how it was split into
+// jobs ("branch_jobs"), and logs. They differ from run to run, but they are not results: a
+// rerun that only changes them leaves the downstream stages up to date.
+bool is_run_measurement(std::string_view json_key);
+// The content hash of one output file, run records aside: a *.log file and a file under a
+// `.jobs/` folder (what a split stage's jobs hand each other: align's plan and branch files,
+// with their times and plan id; the stage's last job checks them, nothing after it reads them)
+// hash to a constant: their presence counts, not their bytes. A *.json file is hashed without
+// its run measurements; every other file (and a .json that does not parse) byte for byte.
+std::uint64_t hash_result_file(const fs::path& path);
 // Total size in bytes of the regular files under the session sub-folders `folders`.
 std::uint64_t folder_bytes(const fs::path& session_root, const std::vector<std::string>& folders);
 

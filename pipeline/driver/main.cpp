@@ -82,6 +82,19 @@ int command_status(const std::string& session_dir, const std::vector<StageSpec>&
   return kExitOk;
 }
 
+int command_digest(const std::string& session_dir, std::vector<std::string> folders) {
+  const fs::path root(session_dir);
+  if (!fs::is_directory(root)) throw InputError(fmt::format("{}: not a folder", session_dir));
+  if (folders.empty()) {
+    for (const auto& entry : fs::directory_iterator(root)) {
+      const std::string name = entry.path().filename().string();
+      if (entry.is_directory() && name != "logs") folders.push_back(name);
+    }
+  }
+  for (const auto& [path, hash] : hash_folders(root, folders)) fmt::print("{}  {}\n", hash, path);
+  return kExitOk;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -152,6 +165,16 @@ int main(int argc, char** argv) {
   CLI::App* status = app.add_subcommand("status", "show the state of every stage of a session");
   status->add_option("session", session_dir, "session folder (holds session.yaml)")->required();
 
+  std::vector<std::string> digest_folders;
+  CLI::App* digest = app.add_subcommand(
+      "digest",
+      "print the content hash of every result file under the session's folders, the way the\n"
+      "driver compares them: run records (times, CPU, job split, logs) left out, so two runs\n"
+      "with the same results print the same lines");
+  digest->add_option("session", session_dir, "session folder")->required();
+  digest->add_option("folders", digest_folders,
+                     "sub-folders to hash (default: every sub-folder but logs/)");
+
   CLI::App* defaults = app.add_subcommand(
       "defaults", "print every stage's session.yaml options with their defaults (YAML)");
 
@@ -174,6 +197,7 @@ int main(int argc, char** argv) {
                 files.jobs, files.config.string(), files.slurm_profile.string());
       return kExitOk;
     }
+    if (*digest) return command_digest(session_dir, digest_folders);
     if (*defaults) {
       std::fputs(default_options_yaml(built).c_str(), stdout);
       return kExitOk;

@@ -195,136 +195,163 @@ CalibrationCheckResult check_calibration(const std::string& colmap,
   if (cameras.size() != images.size()) {
     throw InputError("calibration check: one image per camera is needed");
   }
-  // Work in a fresh folder beside the output and swap it in at the end.
-  const fs::path work = out_dir.string() + ".tmp";
+  // Work in a fresh hidden folder beside the output and swap it in at the end (a killed run
+  // leaves it hidden; the next run starts it afresh).
+  const fs::path work = out_dir.parent_path() / ("." + out_dir.filename().string() + ".tmp");
   std::error_code ec;
   fs::remove_all(work, ec);
   ensure_directory(work / "images");
   const fs::path log = work / "colmap.log";
   const fs::path db = work / "database.db";
-
-  // One feature_extractor run per camera: COLMAP gives image i and camera i the id i + 1, as
-  // write_colmap_model numbers our calibration, and each camera keeps its own intrinsics.
-  for (std::size_t i = 0; i < cameras.size(); ++i) {
-    const std::string name = cameras[i].name + ".png";
-    write_image_atomic(work / "images" / name, images[i]);
-    write_file_atomic(work / "list.txt", name + "\n");
-    run_colmap_checked(
-        colmap, "feature_extractor",
-        {"--database_path", db.string(), "--image_path", (work / "images").string(),
-         "--image_list_path", (work / "list.txt").string(), "--ImageReader.camera_model", "OPENCV",
-         "--ImageReader.camera_params", camera_params(cameras[i]), "--SiftExtraction.use_gpu", "0",
-         "--SiftExtraction.num_threads", "2", "--SiftExtraction.max_num_features",
-         std::to_string(options.max_features), "--SiftExtraction.peak_threshold",
-         fmt::format("{}", options.peak_threshold)},
-        log);
-  }
-  run_colmap_checked(colmap, "exhaustive_matcher",
-                     {"--database_path", db.string(), "--SiftMatching.use_gpu", "0",
-                      "--SiftMatching.num_threads", "2", "--SiftMatching.guided_matching", "1"},
-                     log);
-  write_colmap_model(work / "input", cameras);
-  fs::remove(work / "input" / "rig.json", ec);  // COLMAP's readers do not know it
-  const std::string tol = fmt::format("{}", options.max_error_px);
-  ensure_directory(work / "triangulated");
-  const int triangulator_exit = run_colmap(
-      colmap, "point_triangulator",
-      {"--database_path", db.string(), "--image_path", (work / "images").string(), "--input_path",
-       (work / "input").string(), "--output_path", (work / "triangulated").string(),
-       "--Mapper.filter_max_reproj_error", tol, "--Mapper.tri_merge_max_reproj_error", tol,
-       "--Mapper.tri_complete_max_reproj_error", tol, "--Mapper.tri_create_max_angle_error", "4",
-       "--Mapper.tri_continue_max_angle_error", "4", "--Mapper.ba_refine_focal_length", "0",
-       "--Mapper.ba_refine_extra_params", "0", "--Mapper.num_threads", "2"},
-      log);
-  if (triangulator_exit != 0) {
-    // COLMAP 3.8 aborts (exit 134, a failed CHECK in its bundle adjustment) when there is
-    // nothing to triangulate: say why instead of showing its stack trace.
-    throw SolverError(triangulation_failure(log, triangulator_exit, cameras));
-  }
-  run_colmap_checked(colmap, "model_converter",
-                     {"--input_path", (work / "triangulated").string(), "--output_path",
-                      (work / "triangulated").string(), "--output_type", "TXT"},
-                     log);
-
   CalibrationCheckResult result;
-  result.cameras = reprojection_errors(cameras, work / "triangulated", &result.points);
-  for (const Camera& c : cameras) {
-    const CameraReprojection& e = result.cameras[c.name];
-    if (e.observations > 0 && e.observations < 10) {
-      result.warnings.push_back(fmt::format(
-          "camera {}: only {} triangulated point(s) in its image (mean reprojection error "
-          "{:.2f} px) — too few to judge its calibration (few SIFT matches between the cameras)",
-          c.name, e.observations, e.mean_error_px));
-    } else if (e.observations == 0) {
-      result.warnings.push_back(fmt::format(
-          "camera {}: no point triangulated in its image — it sees nothing the others see, or "
-          "its calibration is far off", c.name));
-    } else if (e.mean_error_px > options.warn_error_px) {
-      result.warnings.push_back(fmt::format(
-          "camera {}: mean reprojection error {:.2f} px over {} points exceeds {:.2f} px — its "
-          "calibration is off (refine it with --refine-calibration)", c.name, e.mean_error_px,
-          e.observations, options.warn_error_px));
+  try {
+    // One feature_extractor run per camera: COLMAP gives image i and camera i the id i + 1, as
+    // write_colmap_model numbers our calibration, and each camera keeps its own intrinsics.
+    for (std::size_t i = 0; i < cameras.size(); ++i) {
+      const std::string name = cameras[i].name + ".png";
+      write_image_atomic(work / "images" / name, images[i]);
+      write_file_atomic(work / "list.txt", name + "\n");
+      run_colmap_checked(
+          colmap, "feature_extractor",
+          {"--database_path", db.string(), "--image_path", (work / "images").string(),
+           "--image_list_path", (work / "list.txt").string(), "--ImageReader.camera_model",
+           "OPENCV", "--ImageReader.camera_params", camera_params(cameras[i]),
+           "--SiftExtraction.use_gpu", "0", "--SiftExtraction.num_threads", "2",
+           "--SiftExtraction.max_num_features", std::to_string(options.max_features),
+           "--SiftExtraction.peak_threshold", fmt::format("{}", options.peak_threshold)},
+          log);
     }
-  }
-
-  if (refine && result.points < static_cast<std::size_t>(options.min_refine_points)) {
-    result.warnings.push_back(fmt::format(
-        "refinement skipped: {} triangulated points, fewer than {} "
-        "(calibration_check.min_refine_points); bundle adjustment would fit the noise of so few",
-        result.points, options.min_refine_points));
-    refine = false;
-  }
-  if (refine) {
-    ensure_directory(work / "adjusted");
-    run_colmap_checked(
-        colmap, "bundle_adjuster",
-        {"--input_path", (work / "triangulated").string(), "--output_path",
-         (work / "adjusted").string(), "--BundleAdjustment.refine_focal_length",
-         options.refine_focal_length ? "1" : "0", "--BundleAdjustment.refine_principal_point", "0",
-         "--BundleAdjustment.refine_extra_params", "0", "--BundleAdjustment.refine_extrinsics", "1"},
-        log);
-    run_colmap_checked(colmap, "model_converter",
-                       {"--input_path", (work / "adjusted").string(), "--output_path",
-                        (work / "adjusted").string(), "--output_type", "TXT"},
+    run_colmap_checked(colmap, "exhaustive_matcher",
+                       {"--database_path", db.string(), "--SiftMatching.use_gpu", "0",
+                        "--SiftMatching.num_threads", "2", "--SiftMatching.guided_matching", "1"},
                        log);
-    std::vector<Camera> adjusted = read_colmap_model(work / "adjusted");
-    result.refined = reprojection_errors(adjusted, work / "adjusted");
-    // Back into our world frame: the similarity that best maps the adjusted camera centres
-    // onto the calibrated ones.
-    std::map<std::string, const Camera*> by_name;
-    for (const Camera& c : cameras) by_name[c.name] = &c;
-    std::vector<Eigen::Vector3d> from, to;
-    for (const Camera& c : adjusted) {
-      auto it = by_name.find(c.name);
-      if (it == by_name.end()) continue;
-      from.push_back(c.center());
-      to.push_back(it->second->center());
+    write_colmap_model(work / "input", cameras);
+    fs::remove(work / "input" / "rig.json", ec);  // COLMAP's readers do not know it
+    const std::string tol = fmt::format("{}", options.max_error_px);
+    ensure_directory(work / "triangulated");
+    const int triangulator_exit = run_colmap(colmap, "point_triangulator",
+                                             {"--database_path",
+                                              db.string(),
+                                              "--image_path",
+                                              (work / "images").string(),
+                                              "--input_path",
+                                              (work / "input").string(),
+                                              "--output_path",
+                                              (work / "triangulated").string(),
+                                              "--Mapper.filter_max_reproj_error",
+                                              tol,
+                                              "--Mapper.tri_merge_max_reproj_error",
+                                              tol,
+                                              "--Mapper.tri_complete_max_reproj_error",
+                                              tol,
+                                              "--Mapper.tri_create_max_angle_error",
+                                              "4",
+                                              "--Mapper.tri_continue_max_angle_error",
+                                              "4",
+                                              "--Mapper.ba_refine_focal_length",
+                                              "0",
+                                              "--Mapper.ba_refine_extra_params",
+                                              "0",
+                                              "--Mapper.num_threads",
+                                              "2"},
+                                             log);
+    if (triangulator_exit != 0) {
+      // COLMAP 3.8 aborts (exit 134, a failed CHECK in its bundle adjustment) when there is
+      // nothing to triangulate: say why instead of showing its stack trace.
+      throw SolverError(triangulation_failure(log, triangulator_exit, cameras));
     }
-    if (from.size() < 3) {
-      throw SolverError("calibration check: bundle adjustment kept fewer than 3 cameras");
-    }
-    adjusted = transform_rig(adjusted, fit_similarity(from, to));
-    // Our order and names, COLMAP's refined values.
-    std::map<std::string, Camera> refined_by_name;
-    for (const Camera& c : adjusted) refined_by_name[c.name] = c;
-    for (const Camera& c : cameras) {
-      auto it = refined_by_name.find(c.name);
-      result.refined_calibration.push_back(it == refined_by_name.end() ? c : it->second);
-    }
-    // Few or badly spread points let bundle adjustment move cameras far to fit them: such a
-    // result is worse than the calibration it started from.
-    const std::string rejected =
-        refinement_rejection(cameras, result.refined_calibration, options, result.points);
-    if (!rejected.empty()) {
-      result.warnings.push_back(rejected);
-      result.refined_calibration.clear();
-      result.refined.clear();
-    }
-    if (!result.refined_calibration.empty()) {
-      write_colmap_model(work / "refined", result.refined_calibration);
-    }
-  }
+    run_colmap_checked(colmap, "model_converter",
+                       {"--input_path", (work / "triangulated").string(), "--output_path",
+                        (work / "triangulated").string(), "--output_type", "TXT"},
+                       log);
 
+    result.cameras = reprojection_errors(cameras, work / "triangulated", &result.points);
+    for (const Camera& c : cameras) {
+      const CameraReprojection& e = result.cameras[c.name];
+      if (e.observations > 0 && e.observations < 10) {
+        result.warnings.push_back(fmt::format(
+            "camera {}: only {} triangulated point(s) in its image (mean reprojection error "
+            "{:.2f} px) — too few to judge its calibration (few SIFT matches between the cameras)",
+            c.name, e.observations, e.mean_error_px));
+      } else if (e.observations == 0) {
+        result.warnings.push_back(fmt::format(
+            "camera {}: no point triangulated in its image — it sees nothing the others see, or "
+            "its calibration is far off",
+            c.name));
+      } else if (e.mean_error_px > options.warn_error_px) {
+        result.warnings.push_back(fmt::format(
+            "camera {}: mean reprojection error {:.2f} px over {} points exceeds {:.2f} px — its "
+            "calibration is off (refine it with --refine-calibration)",
+            c.name, e.mean_error_px, e.observations, options.warn_error_px));
+      }
+    }
+
+    if (refine && result.points < static_cast<std::size_t>(options.min_refine_points)) {
+      result.warnings.push_back(fmt::format(
+          "refinement skipped: {} triangulated points, fewer than {} "
+          "(calibration_check.min_refine_points); bundle adjustment would fit the noise of so few",
+          result.points, options.min_refine_points));
+      refine = false;
+    }
+    if (refine) {
+      ensure_directory(work / "adjusted");
+      run_colmap_checked(
+          colmap, "bundle_adjuster",
+          {"--input_path", (work / "triangulated").string(), "--output_path",
+           (work / "adjusted").string(), "--BundleAdjustment.refine_focal_length",
+           options.refine_focal_length ? "1" : "0", "--BundleAdjustment.refine_principal_point",
+           "0", "--BundleAdjustment.refine_extra_params", "0",
+           "--BundleAdjustment.refine_extrinsics", "1"},
+          log);
+      run_colmap_checked(colmap, "model_converter",
+                         {"--input_path", (work / "adjusted").string(), "--output_path",
+                          (work / "adjusted").string(), "--output_type", "TXT"},
+                         log);
+      std::vector<Camera> adjusted = read_colmap_model(work / "adjusted");
+      result.refined = reprojection_errors(adjusted, work / "adjusted");
+      // Back into our world frame: the similarity that best maps the adjusted camera centres
+      // onto the calibrated ones.
+      std::map<std::string, const Camera*> by_name;
+      for (const Camera& c : cameras) by_name[c.name] = &c;
+      std::vector<Eigen::Vector3d> from, to;
+      for (const Camera& c : adjusted) {
+        auto it = by_name.find(c.name);
+        if (it == by_name.end()) continue;
+        from.push_back(c.center());
+        to.push_back(it->second->center());
+      }
+      if (from.size() < 3) {
+        throw SolverError("calibration check: bundle adjustment kept fewer than 3 cameras");
+      }
+      adjusted = transform_rig(adjusted, fit_similarity(from, to));
+      // Our order and names, COLMAP's refined values.
+      std::map<std::string, Camera> refined_by_name;
+      for (const Camera& c : adjusted) refined_by_name[c.name] = c;
+      for (const Camera& c : cameras) {
+        auto it = refined_by_name.find(c.name);
+        result.refined_calibration.push_back(it == refined_by_name.end() ? c : it->second);
+      }
+      // Few or badly spread points let bundle adjustment move cameras far to fit them: such a
+      // result is worse than the calibration it started from.
+      const std::string rejected =
+          refinement_rejection(cameras, result.refined_calibration, options, result.points);
+      if (!rejected.empty()) {
+        result.warnings.push_back(rejected);
+        result.refined_calibration.clear();
+        result.refined.clear();
+      }
+      if (!result.refined_calibration.empty()) {
+        write_colmap_model(work / "refined", result.refined_calibration);
+      }
+    }
+
+  } catch (const Error&) {
+    // Keep COLMAP's log (the error names it) and drop the scratch: images, database, models.
+    for (const auto& entry : fs::directory_iterator(work, ec)) {
+      if (entry.path() != log) fs::remove_all(entry.path(), ec);
+    }
+    throw;
+  }
   fs::remove(work / "list.txt", ec);
   fs::remove_all(out_dir, ec);
   fs::rename(work, out_dir, ec);

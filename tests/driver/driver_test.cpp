@@ -191,6 +191,43 @@ TEST_F(DriverTest, ChangedInputFileRerunsStageAndDownstream) {
   EXPECT_EQ(run().ran.size(), 3u);
 }
 
+TEST_F(DriverTest, RunRecordsInOutputsAreNotResults) {
+  // A stage's report with its times and a log: rewriting them as another run would (other
+  // times, other log text) changes no result, so nothing reruns; a result field does.
+  write_text(session_ / "a" / "report.json",
+             R"({"frames": 3, "seconds": 1.5, "per_frame": [{"seconds_total": 0.5, "rms": 2}],)"
+             R"( "similarity_cpu_s": 0.1, "max_search_us": 7, "branch_jobs": 1})");
+  write_text(session_ / "a" / "colmap.log", "started 10:00\n");
+  run();
+  ASSERT_EQ(run().ran.size(), 0u);
+  write_text(session_ / "a" / "report.json",
+             R"({"frames": 3, "seconds": 9.25, "per_frame": [{"seconds_total": 4, "rms": 2}],)"
+             R"( "similarity_cpu_s": 3, "max_search_us": 70, "branch_jobs": 4})");
+  write_text(session_ / "a" / "colmap.log", "started 11:00, other text\n");
+  EXPECT_EQ(run().ran.size(), 0u);
+  write_text(session_ / "a" / "report.json",
+             R"({"frames": 3, "seconds": 9.25, "per_frame": [{"seconds_total": 4, "rms": 3}],)"
+             R"( "similarity_cpu_s": 3, "max_search_us": 70, "branch_jobs": 4})");
+  EXPECT_EQ(run().ran, (std::vector<std::string>{"make", "copy", "sum"}));
+
+  EXPECT_TRUE(is_run_measurement("seconds_per_frame"));
+  EXPECT_TRUE(is_run_measurement("reconstruct.pipeline.seconds_per_frame"));
+  EXPECT_TRUE(is_run_measurement("blend.oracle.hybrid3_cost_ratio_to_linear"));
+  EXPECT_TRUE(is_run_measurement("online_cpu_s"));
+  EXPECT_FALSE(is_run_measurement("latency_s"));
+  EXPECT_FALSE(is_run_measurement("frame_time_s"));
+  EXPECT_FALSE(is_run_measurement("rms_mm"));
+  write_text(dir_ / "a" / ".jobs" / "plan.bin", "plan 1");
+  const auto job = hash_result_file(dir_ / "a" / ".jobs" / "plan.bin");
+  write_text(dir_ / "a" / ".jobs" / "plan.bin", "plan 2, other times");
+  EXPECT_EQ(hash_result_file(dir_ / "a" / ".jobs" / "plan.bin"), job);
+  // A file that is not valid JSON is hashed byte for byte.
+  write_text(dir_ / "bad.json", "{\"seconds\": 1");
+  const auto bad = hash_result_file(dir_ / "bad.json");
+  write_text(dir_ / "bad.json", "{\"seconds\": 2");
+  EXPECT_NE(hash_result_file(dir_ / "bad.json"), bad);
+}
+
 TEST_F(DriverTest, ChangedOptionRerunsOnlyThatStageAndDownstream) {
   run();
   // copy's section changes: make stays up to date.
