@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
 # The reliability jobs (README "Reliability"), after scripts/test.sh has built the project and
-# run the end-to-end test (whose session, build/e2e_tiny, is the uninterrupted reference):
-#   1. kill-and-rerun: KILLS (default 1) random SIGKILLs per stage on a copy of build/e2e_tiny;
+# run the tests (whose workflow session, build/workflow_local/local, is the uninterrupted
+# reference; REFERENCE names another finished session, e.g. build/e2e_tiny):
+#   1. kill-and-rerun: KILLS (default 1) random SIGKILLs per stage on a copy of REFERENCE;
 #   2. the unit tests of the parsing and runtime topics under ASan + UBSan (clang, build-fuzz/);
 #   3. every fuzz target for FUZZ_SECONDS (default 30) on the same sanitized tree.
-# Prints the wall time of each step. Environment: KILLS, KILL_SEED (default: the commit's
-# hash, printed, so a failure can be replayed), FUZZ_SECONDS.
+# Prints the wall time of each step. Environment: REFERENCE, KILLS, KILL_SEED (default: the
+# commit's hash, printed, so a failure can be replayed), FUZZ_SECONDS.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 kills="${KILLS:-1}"
@@ -20,10 +21,11 @@ step() {
   "$@"
   echo "== $name: $((SECONDS - start)) s"
 }
-test -f build/e2e_tiny/reports/metrics.json \
-  || { echo "no finished build/e2e_tiny session: run scripts/test.sh first"; exit 1; }
+reference="${REFERENCE:-build/workflow_local/local}"
+test -f "$reference/reports/metrics.json" \
+  || { echo "no finished session in $reference: run scripts/test.sh first"; exit 1; }
 echo "kill seed $seed ($kills kill(s) per stage)"
-step "kill and rerun" env FOURD_BIN=build/bin bash tests/e2e/kill_rerun.sh build/e2e_tiny \
+step "kill and rerun" env FOURD_BIN=build/bin bash tests/e2e/kill_rerun.sh "$reference" \
   "$scratch/kill" "$kills" "$seed"
 step "sanitizer unit tests" bash scripts/test_sanitizers.sh
 step "fuzzing" bash tests/fuzz/run_fuzz.sh "$fuzz_seconds"

@@ -14,7 +14,7 @@
 # end-to-end test, through ctest.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-export CCACHE_DIR="${CCACHE_DIR:-$HOME/.cache/fourd-ccache}"
+source scripts/ccache_env.sh
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:strict_string_checks=1
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 if [ "${1:-}" = "--all" ]; then

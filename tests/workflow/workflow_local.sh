@@ -129,11 +129,11 @@ expect 4 "has frames 0:19" "$bin/fourd-segment" "$s" --take walk_slow --frames 2
 expect 2 "overlap" "$bin/fourd-segment" "$s" --take walk_slow --frames 0:5,3:8
 expect 2 "empty or negative" "$bin/fourd-reconstruct" "$s" --take walk_slow --frames 5:2
 expect 4 "take 'run' is not in the capture" "$bin/fourd-reconstruct" "$s" --take run --frames 0:1
-mv "$s/segment/jump_long/cam03/000004.png" "$work/held.png"
-expect 4 "segment/jump_long/cam03/000004.png is missing" \
-  "$bin/fourd-reconstruct" "$s" --take jump_long --frames 0:5
+mv "$s/segment/walk_fast/cam03/000004.png" "$work/held.png"
+expect 4 "segment/walk_fast/cam03/000004.png is missing" \
+  "$bin/fourd-reconstruct" "$s" --take walk_fast --frames 0:5
 expect 4 "000004.png is missing" "$bin/fourd-segment" "$s" --finish
-mv "$work/held.png" "$s/segment/jump_long/cam03/000004.png"
+mv "$work/held.png" "$s/segment/walk_fast/cam03/000004.png"
 
 echo "== a frame that fails reconstruction is reported with its job's log"
 oiiotool --create 320x240 1 -d uint8 -o "$work/black.png"
