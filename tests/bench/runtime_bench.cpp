@@ -75,8 +75,8 @@ const MotionGraph& bench_graph(int vertices) {
   s.blend = make_blend_space(3, nv, kFrames);
   const std::array<std::array<double, 3>, 6> refs{
       {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {0.5, 0.5, 0}, {0, 0.5, 0.5}, {0.5, 0, 0.5}}};
-  for (int j = 3; j < 6; ++j) add_reference(&s.blend, refs[j]);
-  for (int j = 0; j < 6; ++j) {
+  for (int j = 0; j < 6; ++j) {  // inputs first: the references are stored relative to them
+    if (j >= 3) add_reference(&s.blend, refs[j]);
     for (int f = 0; f < kFrames; ++f) set_frame(&s.blend, j, f, test::to_vec3f(pose(refs[j], f)));
   }
   s.blend.cells = {{0, 3, 5}, {3, 1, 4}, {5, 4, 2}, {3, 4, 5}};
@@ -94,6 +94,7 @@ const MotionGraph& bench_graph(int vertices) {
   GraphSpace gs;
   gs.motion = std::move(s);
   gs.normals = gs.motion.blend.frames;  // same layout; the values do not matter here
+  gs.normal_displacements = gs.motion.blend.displacements;
   g->spaces.push_back(std::move(gs));
   GraphEdge loop;
   loop.from = loop.to = 0;
@@ -124,7 +125,8 @@ double bytes_per_step(const MotionGraph& g, int steps) {
     space_weights(space, c.state().p, &w);
     BlendSources s;
     hybrid_blend_sources(space.motion.blend, c.state().t, std::span<const float>(w.data(), 3), &s);
-    bytes += 2.0 * (s.count + 1) * space.motion.blend.frame_stride() * sizeof(float);
+    const std::size_t values = space.motion.blend.frame_stride();
+    bytes += 2.0 * (s.read_bytes(values) + values * sizeof(float));  // + the output written
   }
   return bytes / steps;
 }
