@@ -246,14 +246,15 @@ constexpr std::array<Kernel, sizeof...(I)> kernel_table(std::index_sequence<I...
 }
 
 template <bool kAccumulate>
-void dispatch_weighted_sum(const BlendSources& s, std::size_t n, float* out) {
+void dispatch_weighted_sum(const BlendSources& s, std::size_t n, float* out,
+                           bool allow_avx2 = true) {
   assert(s.count >= 0 && s.count <= kMaxBlendSources && s.displacement_count >= 0 &&
          s.displacement_count <= kMaxBlendDisplacements && s.count + s.displacement_count > 0 &&
          "a blend reads 1 to kMaxBlendSources float and 0 to kMaxBlendDisplacements half frames");
   using Indices = std::make_index_sequence<(kMaxBlendSources + 1) * kHalfCounts>;
   const int index = s.count * kHalfCounts + s.displacement_count;
 #ifdef FOURD_BLEND_AVX2
-  if (has_avx2_fma_f16c()) {
+  if (allow_avx2 && has_avx2_fma_f16c()) {
     static constexpr auto kAvx2 = kernel_table<kAccumulate, true>(Indices{});
     kAvx2[index](s, n, out);
     return;
@@ -309,7 +310,9 @@ std::uint16_t float_to_half(float x) {
 }
 
 int blend_plane_stride(int num_vertices) {
-  return (num_vertices + kPadFloats - 1) / kPadFloats * kPadFloats;
+  // In 64 bits, so a count from a damaged file cannot overflow (the result then fails checks).
+  return static_cast<int>((static_cast<std::int64_t>(num_vertices) + kPadFloats - 1) / kPadFloats *
+                          kPadFloats);
 }
 
 void BlendSpace::check() const {
@@ -631,6 +634,14 @@ void weighted_sum(const BlendSources& s, std::size_t n, float* out) {
 
 void accumulate_weighted_sum(const BlendSources& s, std::size_t n, float* out) {
   dispatch_weighted_sum<true>(s, n, out);
+}
+
+void portable_weighted_sum(const BlendSources& s, std::size_t n, bool accumulate, float* out) {
+  if (accumulate) {
+    dispatch_weighted_sum<true>(s, n, out, false);
+  } else {
+    dispatch_weighted_sum<false>(s, n, out, false);
+  }
 }
 
 void blend_hybrid(const BlendSpace& space, double t, std::span<const float> w, BlendedFrame* out) {

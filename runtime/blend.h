@@ -239,6 +239,10 @@ void linear_blend_sources(const BlendSpace& space, double t, std::span<const flo
 void weighted_sum(const BlendSources& sources, std::size_t n, float* out);
 // out[0 .. n) += the same sum (e.g. a cross-fade's second blend).
 void accumulate_weighted_sum(const BlendSources& sources, std::size_t n, float* out);
+// The same two, always with the kernel compiled for baseline x86-64 (which weighted_sum uses on
+// CPUs without AVX2, FMA and F16C), so tests check it on any CPU.
+void portable_weighted_sum(const BlendSources& sources, std::size_t n, bool accumulate,
+                           float* out);
 
 // The node layout of one cell. midpoints[k] is the reference at the midpoint of the edge
 // opposite corner k (triangles: edges (1, 2), (2, 0), (0, 1)); segments use midpoints[0] for

@@ -287,15 +287,19 @@ TEST(Blend, WeightedSumsHandleEveryCount) {
         s.displacement_sources[k] = h.data();
         s.displacement_coefficients[k] = 0.25f * (k + 1);
       }
-      AlignedFloats out(kN, 100.f), acc(kN, 100.f);
+      AlignedFloats out(kN, 100.f), acc(kN, 100.f), pout(kN, 100.f), pacc(kN, 100.f);
       weighted_sum(s, kN, out.data());
       accumulate_weighted_sum(s, kN, acc.data());
+      portable_weighted_sum(s, kN, false, pout.data());  // the kernel of CPUs without AVX2
+      portable_weighted_sum(s, kN, true, pacc.data());
       for (int i = 0; i < kN; ++i) {
         float expected = 0;
         for (int k = 0; k < count; ++k) expected += 0.5f * (k + 1) * (k % 2 ? 1.f : float(i));
         for (int k = 0; k < halves; ++k) expected += 0.25f * (k + 1) * 0.25f * (i - 20);
         ASSERT_NEAR(out[i], expected, 1e-3) << count << " floats, " << halves << " halves";
         ASSERT_NEAR(acc[i], 100.f + expected, 1e-3) << count << " floats, " << halves << " halves";
+        ASSERT_NEAR(pout[i], expected, 1e-3) << count << " floats, " << halves << " halves";
+        ASSERT_NEAR(pacc[i], 100.f + expected, 1e-3) << count << " floats, " << halves << " halves";
       }
     }
   }
