@@ -20,31 +20,32 @@ constexpr std::uint64_t kMaxSpaces = 1024;
 constexpr std::uint64_t kMaxEdges = 1024 * 1024;
 constexpr std::uint64_t kMaxTextureImages = 1 << 16;
 
-void write_floats(BinaryWriter& w, const AlignedFloats& values) {
-  w.write_span(std::span<const float>(values.data(), values.size()));
-}
-
-AlignedFloats read_floats(BinaryReader& r, const char* what) {
-  const auto count = r.read<std::uint64_t>();
-  if (count > r.remaining() / sizeof(float)) {
-    throw InputError(fmt::format("{}: truncated {} ({} floats announced, {} bytes left)",
-                                 r.path().string(), what, count, r.remaining()));
-  }
-  AlignedFloats values(count);
-  r.read_bytes(values.data(), count * sizeof(float));
-  return values;
-}
-
-// A node: the motion space (its own file's layout) followed by its reference normals.
+// A node: the motion space (its own file's layout) followed by its normals: the inputs' in
+// float, the other references' as fp16 displacements (before version 4: every reference's in
+// float, converted at load like the positions).
 void write_space(BinaryWriter& w, const GraphSpace& g) {
   write_motion_space_fields(w, g.motion);
-  write_floats(w, g.normals);
+  w.write_span(std::span<const float>(g.normals.data(), g.normals.size()));
+  w.write_span(
+      std::span<const std::uint16_t>(g.normal_displacements.data(), g.normal_displacements.size()));
 }
 
 GraphSpace read_space(BinaryReader& r) {
   GraphSpace g;
-  g.motion = read_motion_space_fields(r, /*has_arc_angles=*/true);
-  g.normals = read_floats(r, "normals");
+  const bool displacements = r.version() >= kAssetVersionDisplacements;
+  g.motion = read_motion_space_fields(r, {.arc_angles = true, .displacements = displacements});
+  if (displacements) {
+    g.normals = read_aligned<float>(r, "normals");
+    g.normal_displacements = read_aligned<std::uint16_t>(r, "normal displacements");
+  } else {
+    const AlignedFloats all = read_aligned<float>(r, "normals");
+    try {
+      split_reference_frames(g.motion.blend, all, &g.normals, &g.normal_displacements);
+    } catch (const InputError& e) {
+      throw InputError(fmt::format("{}: normals of motion space '{}': {}", r.path().string(),
+                                   g.motion.name, e.what()));
+    }
+  }
   return g;
 }
 
@@ -191,7 +192,11 @@ void save_asset(const std::filesystem::path& path, const Asset& asset) {
   asset.transitions.check();
   BinaryWriter w;
   std::size_t bytes = 4096;
-  for (const GraphSpace& s : g.spaces) bytes += 2 * s.normals.size() * sizeof(float) + 4096;
+  for (const GraphSpace& s : g.spaces) {
+    bytes += 2 * (s.normals.size() * sizeof(float) +
+                  s.normal_displacements.size() * sizeof(std::uint16_t)) +
+             4096;
+  }
   for (const GraphEdge& e : g.edges) bytes += e.similarity.values.size() * sizeof(float) + 1024;
   w.reserve(bytes);
   w.write_string(g.name);
@@ -213,7 +218,7 @@ void save_asset(const std::filesystem::path& path, const Asset& asset) {
 }
 
 Asset load_asset(const std::filesystem::path& path) {
-  BinaryReader r = BinaryReader::open(path, kAssetMagic, {2, kAssetVersion});
+  BinaryReader r = BinaryReader::open(path, kAssetMagic, {2, 3, kAssetVersion});
   Asset asset;
   MotionGraph& g = asset.graph;
   g.name = r.read_string();

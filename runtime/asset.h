@@ -10,7 +10,9 @@
 //   uint64 #spaces, per space: name, cyclic, takes, character height, triangles, blend space
 //     (inputs, vertices, samples, plane stride, reference weights, frames, cells), normals
 //     (same layout as the frames), roots, seconds, parameter map (name, unit, inputs, path,
-//     values);
+//     values); (version 4) the blend space's frames are the inputs' in float followed by the
+//     other references' fp16 displacements (runtime/blend.h), and so are the normals; before,
+//     every reference's frames and normals in float, converted to displacements at load;
 //   uint64 #edges, per edge: from, to, self-loop, similarity sizes, d_max, values, precomputed
 //     transitions;
 //   (version 3) uint8 has textures; if 1: int32 width, height, JPEG quality; corner UVs
@@ -23,8 +25,10 @@
 
 namespace fourd {
 
-// 2: per-cell arc angles of the hybrid blend; 3: textures (atlas UVs, key textures per space).
-inline constexpr std::uint32_t kAssetVersion = 3;
+// 2: per-cell arc angles of the hybrid blend; 3: textures (atlas UVs, key textures per space);
+// 4: references as fp16 displacements (positions and normals). Versions 2 and 3 still load.
+inline constexpr std::uint32_t kAssetVersion = 4;
+inline constexpr std::uint32_t kAssetVersionDisplacements = 4;
 
 struct Asset {
   MotionGraph graph;

@@ -3,10 +3,15 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <bit>
 #include <cassert>
 #include <cmath>
 #include <numbers>
 #include <utility>
+
+#if defined(__GNUC__) && defined(__x86_64__)
+#include <immintrin.h>
+#endif
 
 #include "pipeline/core/error.h"
 
@@ -105,81 +110,209 @@ void add_source(BlendSources* out, const float* frame, double coefficient) {
   ++out->count;
 }
 
-// Corner references and their blend factors at frames f and f + 1.
+void add_displacement(BlendSources* out, const std::uint16_t* frame, double coefficient) {
+  if (coefficient == 0) return;
+  assert(out->displacement_count < kMaxBlendDisplacements);
+  out->displacement_sources[out->displacement_count] = frame;
+  out->displacement_coefficients[out->displacement_count] = static_cast<float>(coefficient);
+  ++out->displacement_count;
+}
+
+// The sources of sum_j g_j M_j(t) over nodes `refs` at frames f and f + 1 (blend.h): the
+// inputs with a_k = sum_j g_j w_{j,k}, the other references' displacements with g_j.
 void add_time_samples(const BlendSpace& space, std::span<const int> refs, std::span<const double> g,
                       int f, double alpha, BlendSources* out) {
+  const int n = space.num_inputs;
+  std::array<double, 3> a{};
   out->count = 0;
+  out->displacement_count = 0;
   for (std::size_t k = 0; k < refs.size(); ++k) {
-    add_source(out, space.frame(refs[k], f), (1 - alpha) * g[k]);
-    if (alpha > 0) add_source(out, space.frame(refs[k], f + 1), alpha * g[k]);
+    const int r = refs[k];
+    if (r < n) {
+      a[r] += g[k];  // an input: w_r = e_r, no displacement
+      continue;
+    }
+    for (int i = 0; i < n; ++i) a[i] += g[k] * space.reference_weights[r * n + i];
+    add_displacement(out, space.displacement(r, f), (1 - alpha) * g[k]);
+    if (alpha > 0) add_displacement(out, space.displacement(r, f + 1), alpha * g[k]);
+  }
+  for (int i = 0; i < n; ++i) {
+    add_source(out, space.frame(i, f), (1 - alpha) * a[i]);
+    if (alpha > 0) add_source(out, space.frame(i, f + 1), alpha * a[i]);
   }
 }
 
-// out = sum of K scaled sources; K is a template parameter so the loop over sources unrolls
-// and the loop over floats vectorises (the sources never alias the output).
-template <int K, bool kAccumulate>
+// out = sum of K float and H half sources, scaled; K and H are template parameters so the
+// loops over sources unroll and the loop over values vectorises (the sources never alias the
+// output). The float and the half sums are separate chains (shorter dependencies).
+template <int K, int H, bool kAccumulate>
 inline __attribute__((always_inline)) void weighted_sum_body(const BlendSources& s, std::size_t n,
                                                              float* __restrict out) {
-  const float* src[K];
-  float c[K];
+  std::array<const float*, std::max(K, 1)> src{};
+  std::array<float, std::max(K, 1)> c{};
+  std::array<const std::uint16_t*, std::max(H, 1)> dsrc{};
+  std::array<float, std::max(H, 1)> dc{};
   for (int k = 0; k < K; ++k) {
     src[k] = s.sources[k];
     c[k] = s.coefficients[k];
   }
+  for (int k = 0; k < H; ++k) {
+    dsrc[k] = s.displacement_sources[k];
+    dc[k] = s.displacement_coefficients[k];
+  }
 #pragma GCC ivdep
   for (std::size_t i = 0; i < n; ++i) {
-    float acc = c[0] * src[0][i];
-    for (int k = 1; k < K; ++k) acc += c[k] * src[k][i];
+    float acc = 0, dacc = 0;
+    for (int k = 0; k < K; ++k) acc += c[k] * src[k][i];
+    for (int k = 0; k < H; ++k) dacc += dc[k] * half_to_float(dsrc[k][i]);
+    if constexpr (H > 0) acc = K > 0 ? acc + dacc : dacc;
     out[i] = kAccumulate ? out[i] + acc : acc;
   }
 }
 
-template <int K, bool kAccumulate>
+template <int K, int H, bool kAccumulate>
 void weighted_sum_k(const BlendSources& s, std::size_t n, float* out) {
-  weighted_sum_body<K, kAccumulate>(s, n, out);
+  weighted_sum_body<K, H, kAccumulate>(s, n, out);
 }
 
-// The build targets baseline x86-64 (SSE2: 4 floats per instruction, one load per source and
-// vector). A blend of 12 sources is then bound by load and add throughput rather than memory
-// bandwidth, so on CPUs with AVX2 and FMA the same loop also runs compiled for them (8 floats
-// per instruction), chosen once at run time. Results may differ in the last bit between the
-// two (fused multiply-add rounds once).
+// The build targets baseline x86-64 (SSE2: 4 floats per instruction, halves converted with
+// integer operations). A blend of 12 sources is then bound by load, convert and add throughput
+// rather than memory bandwidth, so on CPUs with AVX2, FMA and F16C the kernel also runs
+// compiled for them (8 values per instruction, one instruction to convert 8 halves), chosen
+// once at run time. Results may differ in the last bit between the two (fused multiply-add
+// rounds once).
 #if defined(__GNUC__) && defined(__x86_64__)
 #define FOURD_BLEND_AVX2 1
-template <int K, bool kAccumulate>
-__attribute__((target("avx2,fma"))) void weighted_sum_k_avx2(const BlendSources& s,
-                                                             std::size_t n, float* out) {
-  weighted_sum_body<K, kAccumulate>(s, n, out);
+template <int K, int H, bool kAccumulate>
+__attribute__((target("avx2,fma,f16c"))) void weighted_sum_k_avx2(const BlendSources& s,
+                                                                  std::size_t n, float* out) {
+  const float* src[std::max(K, 1)]{};
+  __m256 c[std::max(K, 1)];
+  const std::uint16_t* dsrc[std::max(H, 1)]{};
+  __m256 dc[std::max(H, 1)];
+  for (int k = 0; k < K; ++k) {
+    src[k] = s.sources[k];
+    c[k] = _mm256_set1_ps(s.coefficients[k]);
+  }
+  for (int k = 0; k < H; ++k) {
+    dsrc[k] = s.displacement_sources[k];
+    dc[k] = _mm256_set1_ps(s.displacement_coefficients[k]);
+  }
+  std::size_t i = 0;
+  for (; i + 8 <= n; i += 8) {
+    __m256 acc = _mm256_setzero_ps(), dacc = _mm256_setzero_ps();
+    for (int k = 0; k < K; ++k) acc = _mm256_fmadd_ps(c[k], _mm256_loadu_ps(src[k] + i), acc);
+    for (int k = 0; k < H; ++k) {
+      const __m128i h = _mm_loadu_si128(reinterpret_cast<const __m128i*>(dsrc[k] + i));
+      dacc = _mm256_fmadd_ps(dc[k], _mm256_cvtph_ps(h), dacc);
+    }
+    if constexpr (H > 0) acc = K > 0 ? _mm256_add_ps(acc, dacc) : dacc;
+    if constexpr (kAccumulate) acc = _mm256_add_ps(_mm256_loadu_ps(out + i), acc);
+    _mm256_storeu_ps(out + i, acc);
+  }
+  if (i < n) {  // a tail shorter than a vector (frames are whole vectors; only odd callers)
+    BlendSources tail = s;
+    for (int k = 0; k < K; ++k) tail.sources[k] += i;
+    for (int k = 0; k < H; ++k) tail.displacement_sources[k] += i;
+    weighted_sum_body<K, H, kAccumulate>(tail, n - i, out + i);
+  }
 }
 
-bool has_avx2_fma() {
+bool has_avx2_fma_f16c() {
   static const bool yes = [] {
     __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
+           __builtin_cpu_supports("f16c");
   }();
   return yes;
 }
 #endif
 
-template <bool kAccumulate, int... K>
-void dispatch_weighted_sum(const BlendSources& s, std::size_t n, float* out,
-                           std::integer_sequence<int, K...>) {
-  assert(s.count >= 1 && s.count <= kMaxBlendSources &&
-         "a blend reads 1 to kMaxBlendSources frames");
+// One kernel per (float count, half count): a table indexed by K * (kMaxBlendDisplacements + 1)
+// + H, filled at compile time.
+using Kernel = void (*)(const BlendSources&, std::size_t, float*);
+constexpr int kHalfCounts = kMaxBlendDisplacements + 1;
+
+template <bool kAccumulate, bool kAvx2, std::size_t... I>
+constexpr std::array<Kernel, sizeof...(I)> kernel_table(std::index_sequence<I...>) {
 #ifdef FOURD_BLEND_AVX2
-  if (has_avx2_fma()) {
-    ((s.count == K + 1 ? (weighted_sum_k_avx2<K + 1, kAccumulate>(s, n, out), true) : false) ||
-     ...);
+  if constexpr (kAvx2) {
+    return {{&weighted_sum_k_avx2<static_cast<int>(I) / kHalfCounts,
+                                  static_cast<int>(I) % kHalfCounts, kAccumulate>...}};
+  }
+#endif
+  return {{&weighted_sum_k<static_cast<int>(I) / kHalfCounts, static_cast<int>(I) % kHalfCounts,
+                           kAccumulate>...}};
+}
+
+template <bool kAccumulate>
+void dispatch_weighted_sum(const BlendSources& s, std::size_t n, float* out,
+                           bool allow_avx2 = true) {
+  assert(s.count >= 0 && s.count <= kMaxBlendSources && s.displacement_count >= 0 &&
+         s.displacement_count <= kMaxBlendDisplacements && s.count + s.displacement_count > 0 &&
+         "a blend reads 1 to kMaxBlendSources float and 0 to kMaxBlendDisplacements half frames");
+  using Indices = std::make_index_sequence<(kMaxBlendSources + 1) * kHalfCounts>;
+  const int index = s.count * kHalfCounts + s.displacement_count;
+#ifdef FOURD_BLEND_AVX2
+  if (allow_avx2 && has_avx2_fma_f16c()) {
+    static constexpr auto kAvx2 = kernel_table<kAccumulate, true>(Indices{});
+    kAvx2[index](s, n, out);
     return;
   }
 #endif
-  ((s.count == K + 1 ? (weighted_sum_k<K + 1, kAccumulate>(s, n, out), true) : false) || ...);
+  static constexpr auto kBaseline = kernel_table<kAccumulate, false>(Indices{});
+  kBaseline[index](s, n, out);
+}
+
+// D = m - sum_k w_k input_k at one frame (planes), to fp16; `inputs` points at input 0's
+// frame f, input k's is k * F frames further.
+void encode_displacement(const BlendSpace& space, int reference, int f, const float* m,
+                         const float* inputs, std::uint16_t* out) {
+  const int n = space.num_inputs;
+  const std::size_t values = space.frame_stride();
+  const std::size_t input_stride = static_cast<std::size_t>(space.num_frames) * values;
+  const double* w = space.reference_weights.data() + static_cast<std::size_t>(reference) * n;
+  for (std::size_t i = 0; i < values; ++i) {
+    double linear = 0;
+    for (int k = 0; k < n; ++k) linear += w[k] * inputs[k * input_stride + i];
+    const float d = static_cast<float>(m[i] - linear);
+    if (!(std::abs(d) <= kMaxHalf)) {
+      throw InputError(fmt::format(
+          "blend space: reference {} frame {}: displacement {} from the linear blend of the inputs "
+          "is beyond half precision (|D| <= {}) or not finite",
+          reference, f, d, kMaxHalf));
+    }
+    out[i] = float_to_half(d);
+  }
 }
 
 }  // namespace
 
+std::uint16_t float_to_half(float x) {
+  // After F. Giesen's float_to_half_fast3_rtne: exact round to nearest, ties to even.
+  std::uint32_t bits = std::bit_cast<std::uint32_t>(x);
+  const std::uint32_t sign = (bits >> 16) & 0x8000u;
+  bits &= 0x7fffffffu;
+  std::uint32_t h;
+  if (bits >= 0x47800000u) {  // >= 2^16 (rounds to infinity), infinity or NaN
+    h = bits > 0x7f800000u ? 0x7e00u : 0x7c00u;
+  } else if (bits < 0x38800000u) {  // below 2^-14: a subnormal half or zero
+    // Adding 0.5 puts the float's last place at 2^-24, the half subnormals' step: the FPU
+    // rounds to nearest even, and the low bits are the half's.
+    const float shifted = std::bit_cast<float>(bits) + 0.5f;
+    h = std::bit_cast<std::uint32_t>(shifted) - 0x3f000000u;
+  } else {
+    const std::uint32_t odd = (bits >> 13) & 1u;
+    bits += (static_cast<std::uint32_t>(15 - 127) << 23) + 0xfffu + odd;  // rebias, round
+    h = bits >> 13;  // a carry into the exponent may give infinity (65520 and up): correct
+  }
+  return static_cast<std::uint16_t>(h | sign);
+}
+
 int blend_plane_stride(int num_vertices) {
-  return (num_vertices + kPadFloats - 1) / kPadFloats * kPadFloats;
+  // In 64 bits, so a count from a damaged file cannot overflow (the result then fails checks).
+  return static_cast<int>((static_cast<std::int64_t>(num_vertices) + kPadFloats - 1) / kPadFloats *
+                          kPadFloats);
 }
 
 void BlendSpace::check() const {
@@ -195,11 +328,18 @@ void BlendSpace::check() const {
                                  reference_weights.size(), num_inputs));
   }
   const int r = num_references();
-  if (frames.size() != static_cast<std::size_t>(r) * num_frames * frame_stride()) {
+  const std::size_t per_reference = static_cast<std::size_t>(num_frames) * frame_stride();
+  if (frames.size() != num_inputs * per_reference) {
     throw InputError(
-        fmt::format("blend space: {} floats of frames, expected {} references x {} "
+        fmt::format("blend space: {} floats of frames, expected {} inputs x {} "
                     "frames x {}",
-                    frames.size(), r, num_frames, frame_stride()));
+                    frames.size(), num_inputs, num_frames, frame_stride()));
+  }
+  if (displacements.size() != (r - num_inputs) * per_reference) {
+    throw InputError(
+        fmt::format("blend space: {} halves of displacements, expected {} references "
+                    "x {} frames x {}",
+                    displacements.size(), r - num_inputs, num_frames, frame_stride()));
   }
   for (int j = 0; j < r; ++j) {
     double sum = 0;
@@ -283,8 +423,16 @@ int add_reference(BlendSpace* space, std::span<const double> w) {
                                  space->num_inputs));
   }
   space->reference_weights.insert(space->reference_weights.end(), w.begin(), w.end());
-  space->frames.resize(space->frames.size() + space->num_frames * space->frame_stride(), 0.f);
+  space->displacements.resize(
+      space->displacements.size() + space->num_frames * space->frame_stride(), 0);
   return space->num_references() - 1;
+}
+
+void truncate_references(BlendSpace* space, int count) {
+  assert(count >= space->num_inputs && count <= space->num_references());
+  space->reference_weights.resize(static_cast<std::size_t>(count) * space->num_inputs);
+  space->displacements.resize(static_cast<std::size_t>(count - space->num_inputs) *
+                              space->num_frames * space->frame_stride());
 }
 
 void set_frame(BlendSpace* space, int reference, int f, std::span<const Vec3f> positions) {
@@ -294,12 +442,77 @@ void set_frame(BlendSpace* space, int reference, int f, std::span<const Vec3f> p
         fmt::format("blend space: cannot set frame {} of reference {} from {} positions", f,
                     reference, positions.size()));
   }
-  float* dst = space->frame(reference, f);
+  if (reference < space->num_inputs && space->num_references() > space->num_inputs) {
+    throw InputError(fmt::format(
+        "blend space: cannot set frame {} of input {} after references were added (their "
+        "displacements are relative to the inputs: set every input frame first)",
+        f, reference));
+  }
   const std::size_t stride = space->plane_stride;
-  for (std::size_t v = 0; v < positions.size(); ++v) {
-    dst[v] = positions[v].x();
-    dst[stride + v] = positions[v].y();
-    dst[2 * stride + v] = positions[v].z();
+  auto scatter = [&](float* dst) {
+    for (std::size_t v = 0; v < positions.size(); ++v) {
+      dst[v] = positions[v].x();
+      dst[stride + v] = positions[v].y();
+      dst[2 * stride + v] = positions[v].z();
+    }
+  };
+  if (reference < space->num_inputs) {
+    scatter(space->frame(reference, f));
+    return;
+  }
+  std::vector<float> mesh(space->frame_stride(), 0.f);
+  scatter(mesh.data());
+  encode_displacement(*space, reference, f, mesh.data(), space->frame(0, f),
+                      space->displacement(reference, f));
+}
+
+void reference_frame(const BlendSpace& space, int reference, int f, float* out) {
+  assert(reference >= 0 && reference < space.num_references() && f >= 0 && f < space.num_frames);
+  const std::size_t values = space.frame_stride();
+  if (reference < space.num_inputs) {
+    std::copy_n(space.frame(reference, f), values, out);
+    return;
+  }
+  const int n = space.num_inputs;
+  const double* w = space.reference_weights.data() + static_cast<std::size_t>(reference) * n;
+  const std::uint16_t* d = space.displacement(reference, f);
+  for (std::size_t i = 0; i < values; ++i) {
+    double x = half_to_float(d[i]);
+    for (int k = 0; k < n; ++k) x += w[k] * space.frame(k, f)[i];
+    out[i] = static_cast<float>(x);
+  }
+}
+
+void split_reference_frames(const BlendSpace& space, std::span<const float> all,
+                            AlignedFloats* inputs, AlignedHalfs* displacements) {
+  const int n = space.num_inputs;
+  if (n < 1 || n > 3 || space.num_vertices < 1 || space.num_frames < 1 ||
+      space.plane_stride != blend_plane_stride(space.num_vertices) ||
+      space.reference_weights.size() % n != 0 || space.num_references() < n) {
+    throw InputError(
+        fmt::format("blend space: bad sizes ({} inputs, {} vertices, {} frames, "
+                    "plane stride {}, {} reference weights)",
+                    n, space.num_vertices, space.num_frames, space.plane_stride,
+                    space.reference_weights.size()));
+  }
+  const std::size_t per_reference =
+      static_cast<std::size_t>(space.num_frames) * space.frame_stride();
+  const int r = space.num_references();
+  if (all.size() % per_reference != 0 ||
+      all.size() / per_reference != static_cast<std::size_t>(r)) {
+    throw InputError(
+        fmt::format("blend space: {} floats of reference frames, expected {} "
+                    "references x {} frames x {}",
+                    all.size(), r, space.num_frames, space.frame_stride()));
+  }
+  inputs->assign(all.begin(), all.begin() + n * per_reference);
+  displacements->assign((r - n) * per_reference, 0);
+  for (int j = n; j < r; ++j) {
+    for (int f = 0; f < space.num_frames; ++f) {
+      const std::size_t at = static_cast<std::size_t>(f) * space.frame_stride();
+      encode_displacement(space, j, f, all.data() + j * per_reference + at, all.data() + at,
+                          displacements->data() + (j - n) * per_reference + at);
+    }
   }
 }
 
@@ -416,11 +629,19 @@ void linear_blend_sources(const BlendSpace& space, double t, std::span<const flo
 }
 
 void weighted_sum(const BlendSources& s, std::size_t n, float* out) {
-  dispatch_weighted_sum<false>(s, n, out, std::make_integer_sequence<int, kMaxBlendSources>{});
+  dispatch_weighted_sum<false>(s, n, out);
 }
 
 void accumulate_weighted_sum(const BlendSources& s, std::size_t n, float* out) {
-  dispatch_weighted_sum<true>(s, n, out, std::make_integer_sequence<int, kMaxBlendSources>{});
+  dispatch_weighted_sum<true>(s, n, out);
+}
+
+void portable_weighted_sum(const BlendSources& s, std::size_t n, bool accumulate, float* out) {
+  if (accumulate) {
+    dispatch_weighted_sum<true>(s, n, out, false);
+  } else {
+    dispatch_weighted_sum<false>(s, n, out, false);
+  }
 }
 
 void blend_hybrid(const BlendSpace& space, double t, std::span<const float> w, BlendedFrame* out) {

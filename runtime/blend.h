@@ -35,21 +35,35 @@
 // circle, still sums to 1 and interpolates the three nodes, and tends to the quadratic basis as
 // theta -> 0 (theta = 0 is the quadratic). It is still Eq. 1 with one g per cell node.
 //
-// The paper writes each reference as M_L(t, w_j) + D_NL(t, w_j). The shape functions reproduce
-// linear functions (sum_j g_j = 1 and sum_j g_j w_j = w), so Eq. 1 equals
-// M_L(t, w) + sum_j g_j D_NL(t, w_j): the linear blend plus the interpolated displacement. We
-// store the reference meshes M_j themselves rather than D_NL: the result is identical, but an
-// evaluation reads only the cell's nodes (2..3 or 3..6 frames per time sample) instead of the
-// N inputs plus the displacements. D_NL(t, w_j) is M_j(t) - M_L(t, w_j) whenever it is wanted.
+// Storage (Eq. 1 as the paper writes it). The paper writes each reference as
+// M_j = M_L(t, w_j) + D_j(t): the linear blend of the N inputs at the reference's weights plus
+// a displacement. M_L is linear in w, so
+//   M(t, w) = sum_j g_j (M_L(t, w_j) + D_j(t)) = sum_k a_k M_k(t) + sum_{j >= N} g_j D_j(t),
+//   a_k = sum_j g_j w_{j,k}   (over every node j of the cell, inputs included),
+// exact for any basis (the arc basis too; with the P2 basis, sum_j g_j w_j = w and this is the
+// linear blend M_L(t, w) plus the interpolated displacement). Inputs have D = 0.
+// We store the N input frames in float and, for every other reference, only D_j, in IEEE half
+// precision (fp16): an evaluation is memory-bound, and a displacement is small (centimetres to
+// a few decimetres, the gap between the non-linear and the linear blend), so fp16's 11-bit
+// significand keeps it to < 0.2 mm at 0.4 m while reading half the bytes. The top P2 cell of 3 inputs reads 6 float
+// frames (3 inputs x 2 time samples) and 6 half frames (3 midpoints x 2) instead of 12 float
+// frames: 3/4 of the bytes. The reference mesh M_j(f) = M_L(f, w_j) + D_j(f) is
+// reference_frame() whenever it is wanted. Offline, set_frame() takes a reference's mesh and
+// stores its displacement from the inputs' frames, so the inputs' frames must be set first (it
+// refuses an input frame once the space has references); displacements beyond fp16's range
+// (|D| > 65504) or not finite are refused.
 // Some g_j are negative (a corner's g dips to -1/8 near its opposite nodes); that is expected.
 //
-// Data layout (struct of arrays, float): one frame of one reference is three planes x | y | z
-// of `plane_stride` floats each (the vertex count rounded up to 16, so every plane starts on a
-// 64-byte boundary); the frames of all references follow each other in one aligned array.
+// Data layout (struct of arrays): one frame is three planes x | y | z of `plane_stride` values
+// each (the vertex count rounded up to 16, so every float plane starts on a 64-byte boundary);
+// the frames of the inputs follow each other in one aligned float array, the displacements of
+// the other references in one aligned array of fp16 values.
 // Time is continuous: t in [0, 1] maps to frame position t (F - 1), and an evaluation blends
 // the two nearest frames linearly. Evaluations allocate nothing: the caller owns the output.
 #include <array>
+#include <bit>
 #include <cstddef>
+#include <cstdint>
 #include <cstdlib>
 #include <new>
 #include <span>
@@ -75,6 +89,26 @@ struct AlignedAllocator {
   }
 };
 using AlignedFloats = std::vector<float, AlignedAllocator<float>>;
+// IEEE 754 binary16 values (their bit patterns).
+using AlignedHalfs = std::vector<std::uint16_t, AlignedAllocator<std::uint16_t>>;
+
+// The largest finite half.
+inline constexpr float kMaxHalf = 65504.f;
+// Float to half, rounded to nearest (ties to even); beyond kMaxHalf: infinity; NaN stays NaN.
+std::uint16_t float_to_half(float x);
+// Half to float, exact (zeros, subnormals, infinities and NaN included). Branch-free, so loops
+// over it vectorise; no float subnormal is formed, so it holds with denormals-are-zero too.
+inline float half_to_float(std::uint16_t h) {
+  const std::uint32_t exponent = h & 0x7c00u;
+  std::uint32_t bits = (static_cast<std::uint32_t>(h & 0x7fffu) << 13) + (112u << 23);  // rebias
+  bits |= exponent == 0x7c00u ? 0x7f800000u : 0u;  // infinity, NaN
+  // Zero and subnormals: read as 2^-14 (1 + m / 1024), minus the 2^-14 = m 2^-24 exactly.
+  const float subnormal =
+      std::bit_cast<float>(bits + (1u << 23)) - std::bit_cast<float>(113u << 23);
+  const float f = exponent == 0 ? subnormal : std::bit_cast<float>(bits);
+  return std::bit_cast<float>(std::bit_cast<std::uint32_t>(f) |
+                              (static_cast<std::uint32_t>(h & 0x8000u) << 16));
+}
 
 // Floats per plane: the vertex count rounded up to a multiple of 16 (one cache line).
 int blend_plane_stride(int num_vertices);
@@ -88,8 +122,11 @@ struct BlendSpace {
   // Weights of every reference, N per reference, non-negative and summing to 1. References
   // 0..N-1 are the inputs themselves (weights e_i); hybrid_build appends the others.
   std::vector<double> reference_weights;  // #R x N
-  // Positions of every reference at every frame: [reference][frame][x | y | z planes].
+  // Positions of the inputs at every frame: [input][frame][x | y | z planes].
   AlignedFloats frames;
+  // Displacements D_j(f) = M_j(f) - M_L(f, w_j) of the other references at every frame, fp16:
+  // [reference - N][frame][x | y | z planes].
+  AlignedHalfs displacements;
   // Cells tiling the weight simplex, as the reference indices of their corners: N = 1:
   // {0, -1, -1}; N = 2: weight segments {a, b, -1}; N = 3: weight triangles {a, b, c}. Cells
   // meet edge to edge (no reference inside an edge except its midpoint node), so the blend is
@@ -106,11 +143,21 @@ struct BlendSpace {
     return num_inputs == 0 ? 0 : static_cast<int>(reference_weights.size()) / num_inputs;
   }
   std::size_t frame_stride() const { return 3 * static_cast<std::size_t>(plane_stride); }
-  const float* frame(int reference, int f) const {
-    return frames.data() + (static_cast<std::size_t>(reference) * num_frames + f) * frame_stride();
+  // Frame f of input `input` (< N).
+  const float* frame(int input, int f) const {
+    return frames.data() + (static_cast<std::size_t>(input) * num_frames + f) * frame_stride();
   }
-  float* frame(int reference, int f) {
-    return frames.data() + (static_cast<std::size_t>(reference) * num_frames + f) * frame_stride();
+  float* frame(int input, int f) {
+    return frames.data() + (static_cast<std::size_t>(input) * num_frames + f) * frame_stride();
+  }
+  // Displacement of reference `reference` (>= N) at frame f.
+  const std::uint16_t* displacement(int reference, int f) const {
+    return displacements.data() +
+           (static_cast<std::size_t>(reference - num_inputs) * num_frames + f) * frame_stride();
+  }
+  std::uint16_t* displacement(int reference, int f) {
+    return displacements.data() +
+           (static_cast<std::size_t>(reference - num_inputs) * num_frames + f) * frame_stride();
   }
   // Throws InputError if sizes disagree, a weight is off the simplex or a cell is invalid.
   void check() const;
@@ -119,11 +166,28 @@ struct BlendSpace {
 // A space with the N inputs as its only references (frames zeroed, to be filled with
 // set_frame) and the single cell spanning the whole simplex.
 BlendSpace make_blend_space(int num_inputs, int num_vertices, int num_frames);
-// Appends a reference at weights `w` (N values, summing to 1) with zeroed frames; returns its
-// index. Does not change the cells.
+// Appends a reference at weights `w` (N values, summing to 1) with zero displacements (its mesh
+// is the linear blend until set_frame); returns its index. Does not change the cells.
 int add_reference(BlendSpace* space, std::span<const double> w);
-// Copies #V positions into frame f of a reference (e.g. positions of a Mesh).
+// Drops the references from `count` (>= N) on; cells are left as they are.
+void truncate_references(BlendSpace* space, int count);
+// Frame f of a reference from its #V positions (e.g. those of a Mesh): an input's positions,
+// or the displacement of another reference's mesh from the linear blend of the inputs' frame f
+// at its weights. Throws InputError for bad indices or sizes, for an input once the space has
+// other references (their displacements are relative to the inputs: set the inputs first), and
+// for a displacement beyond fp16's range or not finite. Different (reference, f) may be set
+// from different threads.
 void set_frame(BlendSpace* space, int reference, int f, std::span<const Vec3f> positions);
+// The mesh of any reference at frame f, M_j(f) (for j >= N: M_L(f, w_j) + D_j(f)), as planes
+// x | y | z into out[0 .. frame_stride).
+void reference_frame(const BlendSpace& space, int reference, int f, float* out);
+// From frames of every reference in float, [reference][frame][x | y | z planes] (#R x F frames
+// in the space's layout: older files, or another per-vertex quantity blended like the positions,
+// e.g. normals), the inputs' frames and the other references' fp16 displacements from the
+// linear blend of the inputs at their weights. Throws InputError if the sizes disagree with the
+// space's, or a displacement is beyond fp16's range or not finite.
+void split_reference_frames(const BlendSpace& space, std::span<const float> all,
+                            AlignedFloats* inputs, AlignedHalfs* displacements);
 
 // One blended frame: planes x | y | z with `plane_stride` floats each (num_vertices valid).
 struct BlendedFrame {
@@ -141,13 +205,23 @@ BlendedFrame make_blended_frame(const BlendSpace& space);
 // already that size).
 void copy_positions(const BlendedFrame& frame, std::vector<Vec3f>* positions);
 
-// What one evaluation reads: up to kMaxBlendSources frames and their coefficients; the output
-// is sum_k coefficients[k] * sources[k] over 3 * plane_stride floats.
-inline constexpr int kMaxBlendSources = 12;  // 6 nodes of a P2 triangle x 2 time samples
+// What one evaluation reads: up to kMaxBlendSources float frames (the inputs) and up to
+// kMaxBlendDisplacements fp16 frames (the displacements), with their coefficients; the output
+// is sum_k coefficients[k] * sources[k] + sum_k displacement_coefficients[k] *
+// displacement_sources[k] over 3 * plane_stride values.
+inline constexpr int kMaxBlendSources = 6;         // 3 inputs x 2 time samples
+inline constexpr int kMaxBlendDisplacements = 12;  // 6 nodes of a P2 triangle x 2 time samples
 struct BlendSources {
   int count = 0;
   std::array<const float*, kMaxBlendSources> sources{};
   std::array<float, kMaxBlendSources> coefficients{};
+  int displacement_count = 0;
+  std::array<const std::uint16_t*, kMaxBlendDisplacements> displacement_sources{};
+  std::array<float, kMaxBlendDisplacements> displacement_coefficients{};
+  // Bytes read for `values` values per frame.
+  std::size_t read_bytes(std::size_t values) const {
+    return values * (count * sizeof(float) + displacement_count * sizeof(std::uint16_t));
+  }
 };
 
 // Weights handed to an evaluation are projected onto the simplex: negative entries count as
@@ -161,10 +235,14 @@ void hybrid_blend_sources(const BlendSpace& space, double t, std::span<const flo
 void linear_blend_sources(const BlendSpace& space, double t, std::span<const float> w,
                           BlendSources* out);
 
-// out[0 .. n) = sum_k coefficients[k] * sources[k][0 .. n): the memory-bound kernel.
+// out[0 .. n) = the sum BlendSources describes: the memory-bound kernel. At least one source.
 void weighted_sum(const BlendSources& sources, std::size_t n, float* out);
-// out[0 .. n) += sum_k coefficients[k] * sources[k][0 .. n) (e.g. a cross-fade's second blend).
+// out[0 .. n) += the same sum (e.g. a cross-fade's second blend).
 void accumulate_weighted_sum(const BlendSources& sources, std::size_t n, float* out);
+// The same two, always with the kernel compiled for baseline x86-64 (which weighted_sum uses on
+// CPUs without AVX2, FMA and F16C), so tests check it on any CPU.
+void portable_weighted_sum(const BlendSources& sources, std::size_t n, bool accumulate,
+                           float* out);
 
 // The node layout of one cell. midpoints[k] is the reference at the midpoint of the edge
 // opposite corner k (triangles: edges (1, 2), (2, 0), (0, 1)); segments use midpoints[0] for

@@ -50,10 +50,14 @@ RootPose root_delta(const MotionSpace& space, double t, double dn, std::span<con
 void to_normals(const GraphSpace& space, const BlendSources& positions, BlendSources* normals) {
   *normals = positions;
   for (int k = 0; k < positions.count; ++k) normals->sources[k] = space.normals_for(positions.sources[k]);
+  for (int k = 0; k < positions.displacement_count; ++k) {
+    normals->displacement_sources[k] = space.normals_for(positions.displacement_sources[k]);
+  }
 }
 
 void scale(BlendSources* s, float f) {
   for (int k = 0; k < s->count; ++k) s->coefficients[k] *= f;
+  for (int k = 0; k < s->displacement_count; ++k) s->displacement_coefficients[k] *= f;
 }
 
 void normalize_planes(BlendedFrame* f) {

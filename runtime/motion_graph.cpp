@@ -118,10 +118,13 @@ void MotionGraph::check() const {
           "motion graph '{}': space '{}' has another topology than '{}' ({} vs {} vertices)", name,
           s.name(), spaces.front().name(), s.motion.blend.num_vertices, nv));
     }
-    if (s.normals.size() != s.motion.blend.frames.size()) {
-      throw InputError(fmt::format("motion graph '{}': space '{}' has {} normal floats for {} "
-                                   "position floats",
-                                   name, s.name(), s.normals.size(), s.motion.blend.frames.size()));
+    if (s.normals.size() != s.motion.blend.frames.size() ||
+        s.normal_displacements.size() != s.motion.blend.displacements.size()) {
+      throw InputError(
+          fmt::format("motion graph '{}': space '{}' has {} + {} normal values for "
+                      "{} + {} position values",
+                      name, s.name(), s.normals.size(), s.normal_displacements.size(),
+                      s.motion.blend.frames.size(), s.motion.blend.displacements.size()));
     }
     if (find_space(s.name()) != &s - spaces.data()) {
       throw InputError(fmt::format("motion graph '{}': two spaces named '{}'", name, s.name()));

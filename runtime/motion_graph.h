@@ -27,11 +27,14 @@
 
 namespace fourd {
 
-// A node: one motion space plus per-vertex normals of every reference frame, in the same layout
-// as space.blend.frames (blended with the same coefficients as the positions).
+// A node: one motion space plus per-vertex normals of every reference frame, stored like the
+// positions (space.blend.frames and .displacements: the inputs' normals in float, the other
+// references' as fp16 displacements from the linear blend of the inputs' normals), so they
+// blend with the same coefficients as the positions.
 struct GraphSpace {
   MotionSpace motion;
-  AlignedFloats normals;  // #R x F x (x | y | z planes), like motion.blend.frames
+  AlignedFloats normals;              // N x F x (x | y | z planes), like motion.blend.frames
+  AlignedHalfs normal_displacements;  // (#R - N) x F x planes, like motion.blend.displacements
 
   const std::string& name() const { return motion.name; }
   bool cyclic() const { return motion.cyclic; }
@@ -39,10 +42,14 @@ struct GraphSpace {
   int num_samples() const { return motion.num_samples(); }
   double parameter_min() const { return motion.parameter_map.min_value(); }
   double parameter_max() const { return motion.parameter_map.max_value(); }
-  // The normals frame that sits where `position_frame` (a pointer into motion.blend.frames)
-  // sits among the positions.
+  // The normals frame that sits where `position_frame` (a pointer into motion.blend.frames, or
+  // into motion.blend.displacements) sits among the positions.
   const float* normals_for(const float* position_frame) const {
     return normals.data() + (position_frame - motion.blend.frames.data());
+  }
+  const std::uint16_t* normals_for(const std::uint16_t* position_displacement) const {
+    return normal_displacements.data() +
+           (position_displacement - motion.blend.displacements.data());
   }
 };
 

@@ -19,8 +19,12 @@ constexpr FileMagic kMotionSpaceMagic("FOURDMS");
 // (runtime/blend.h), and the cells' arc angles follow the cells. A version 1 file (no arc
 // angles; its cells have no midpoint references, so every cell is linear) still loads and
 // blends exactly as it did.
-constexpr std::uint32_t kMotionSpaceVersion = 2;
+// Version 3: the inputs' frames in float, the other references as fp16 displacements from the
+// linear blend (runtime/blend.h). Versions 1 and 2 store every reference's frames in float;
+// they load converted to displacements.
+constexpr std::uint32_t kMotionSpaceVersion = 3;
 constexpr std::uint32_t kMotionSpaceVersionLinearCells = 1;
+constexpr std::uint32_t kMotionSpaceVersionFloatReferences = 2;
 
 // Weights projected onto the simplex exactly as runtime/blend.h does.
 std::array<double, 3> simplex_weights(std::span<const float> w, int n) {
@@ -45,6 +49,20 @@ void sample_interval(int num_samples, double t, int* i, double* a) {
 }
 
 }  // namespace
+
+template <class T>
+std::vector<T, AlignedAllocator<T>> read_aligned(BinaryReader& r, const char* what) {
+  const auto count = r.read<std::uint64_t>();
+  if (count > r.remaining() / sizeof(T)) {
+    throw InputError(fmt::format("{}: truncated {} ({} values announced, {} bytes left)",
+                                 r.path().string(), what, count, r.remaining()));
+  }
+  std::vector<T, AlignedAllocator<T>> values(count);
+  r.read_bytes(values.data(), count * sizeof(T));
+  return values;
+}
+template AlignedFloats read_aligned<float>(BinaryReader&, const char*);
+template AlignedHalfs read_aligned<std::uint16_t>(BinaryReader&, const char*);
 
 void MotionSpace::check() const {
   blend.check();
@@ -170,6 +188,7 @@ void write_motion_space_fields(BinaryWriter& w, const MotionSpace& space) {
   w.write<std::int32_t>(b.plane_stride);
   w.write_vector(b.reference_weights);
   w.write_span(std::span<const float>(b.frames.data(), b.frames.size()));
+  w.write_span(std::span<const std::uint16_t>(b.displacements.data(), b.displacements.size()));
   w.write_vector(b.cells);
   w.write_vector(b.cell_arc_angles);
   w.write_vector(space.roots);
@@ -182,7 +201,7 @@ void write_motion_space_fields(BinaryWriter& w, const MotionSpace& space) {
   w.write_vector(m.values);
 }
 
-MotionSpace read_motion_space_fields(BinaryReader& r, bool has_arc_angles) {
+MotionSpace read_motion_space_fields(BinaryReader& r, MotionSpaceLayout layout) {
   MotionSpace s;
   s.name = r.read_string();
   s.cyclic = r.read<std::uint8_t>() != 0;
@@ -200,15 +219,20 @@ MotionSpace read_motion_space_fields(BinaryReader& r, bool has_arc_angles) {
   b.num_frames = r.read<std::int32_t>();
   b.plane_stride = r.read<std::int32_t>();
   b.reference_weights = r.read_vector<double>();
-  const auto floats = r.read<std::uint64_t>();
-  if (floats > r.remaining() / sizeof(float)) {
-    throw InputError(fmt::format("{}: truncated blend frames ({} floats announced, {} bytes left)",
-                                 r.path().string(), floats, r.remaining()));
+  if (layout.displacements) {
+    b.frames = read_aligned<float>(r, "blend frames");
+    b.displacements = read_aligned<std::uint16_t>(r, "blend displacements");
+  } else {
+    const AlignedFloats all = read_aligned<float>(r, "blend frames");
+    try {
+      split_reference_frames(b, all, &b.frames, &b.displacements);
+    } catch (const InputError& e) {
+      throw InputError(
+          fmt::format("{}: motion space '{}': {}", r.path().string(), s.name, e.what()));
+    }
   }
-  b.frames.resize(floats);
-  r.read_bytes(b.frames.data(), floats * sizeof(float));
   b.cells = r.read_vector<std::array<int, 3>>();
-  if (has_arc_angles) b.cell_arc_angles = r.read_vector<double>();
+  if (layout.arc_angles) b.cell_arc_angles = r.read_vector<double>();
   s.roots = r.read_vector<RootPose>();
   s.seconds = r.read_vector<float>();
   ParameterMap& m = s.parameter_map;
@@ -223,15 +247,19 @@ MotionSpace read_motion_space_fields(BinaryReader& r, bool has_arc_angles) {
 void save_motion_space(const std::filesystem::path& path, const MotionSpace& space) {
   space.check();
   BinaryWriter w;
-  w.reserve(space.blend.frames.size() * sizeof(float) + 4096);
+  w.reserve(space.blend.frames.size() * sizeof(float) +
+            space.blend.displacements.size() * sizeof(std::uint16_t) + 4096);
   write_motion_space_fields(w, space);
   w.save(path, kMotionSpaceMagic, kMotionSpaceVersion);
 }
 
 MotionSpace load_motion_space(const std::filesystem::path& path) {
-  BinaryReader r = BinaryReader::open(path, kMotionSpaceMagic,
-                                      {kMotionSpaceVersionLinearCells, kMotionSpaceVersion});
-  MotionSpace s = read_motion_space_fields(r, r.version() >= kMotionSpaceVersion);
+  BinaryReader r = BinaryReader::open(
+      path, kMotionSpaceMagic,
+      {kMotionSpaceVersionLinearCells, kMotionSpaceVersionFloatReferences, kMotionSpaceVersion});
+  MotionSpace s =
+      read_motion_space_fields(r, {.arc_angles = r.version() >= kMotionSpaceVersionFloatReferences,
+                                   .displacements = r.version() >= kMotionSpaceVersion});
   r.expect_end();
   try {
     s.check();

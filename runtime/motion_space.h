@@ -85,7 +85,18 @@ void save_motion_space(const std::filesystem::path& path, const MotionSpace& spa
 // The fields of a motion space in the order its file stores them; the runtime asset embeds
 // them too, so both files share one layout. The reader checks counts against the bytes left.
 void write_motion_space_fields(BinaryWriter& w, const MotionSpace& space);
-MotionSpace read_motion_space_fields(BinaryReader& r, bool has_arc_angles);
+// What an older file's fields lack: the cells' arc angles (.mspace version 1), the references
+// as displacements (.mspace versions 1 and 2, assets before version 4: every reference's frames
+// in float, converted here).
+struct MotionSpaceLayout {
+  bool arc_angles = true;
+  bool displacements = true;
+};
+MotionSpace read_motion_space_fields(BinaryReader& r, MotionSpaceLayout layout);
+// An array written by BinaryWriter::write_span (uint64 count, values), into aligned storage.
+// Throws InputError naming `what` when the file holds fewer values than announced.
+template <class T>
+std::vector<T, AlignedAllocator<T>> read_aligned(BinaryReader& r, const char* what);
 MotionSpace load_motion_space(const std::filesystem::path& path);
 
 }  // namespace fourd

@@ -47,7 +47,7 @@ MotionGraph build_motion_graph(const std::string& name, double fps, std::vector<
   for (MotionSpace& m : spaces) {
     m.check();
     GraphSpace s;
-    s.normals = reference_normals(m);
+    reference_normals(m, &s.normals, &s.normal_displacements);
     s.motion = std::move(m);
     g.spaces.push_back(std::move(s));
   }

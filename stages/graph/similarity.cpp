@@ -1,11 +1,12 @@
 #include "stages/graph/similarity.h"
 
-#include <Eigen/Geometry>
 #include <fmt/format.h>
 #include <tbb/parallel_for.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "pipeline/core/error.h"
 #include "runtime/root_math.h"
@@ -174,14 +175,17 @@ EdgeSimilarity build_edge_similarity(const MotionSpace& source, const MotionSpac
   return s;
 }
 
-AlignedFloats reference_normals(const MotionSpace& space) {
+void reference_normals(const MotionSpace& space, AlignedFloats* normals,
+                       AlignedHalfs* displacements) {
   const BlendSpace& b = space.blend;
-  AlignedFloats normals(b.frames.size(), 0.f);
+  AlignedFloats all(static_cast<std::size_t>(b.num_references()) * b.num_frames * b.frame_stride(),
+                    0.f);
   const int frames = b.num_references() * b.num_frames;
   const std::size_t stride = b.plane_stride;
   tbb::parallel_for(0, frames, [&](int k) {
-    const float* x = b.frames.data() + k * b.frame_stride();
-    float* n = normals.data() + k * b.frame_stride();
+    std::vector<float> x(b.frame_stride());
+    reference_frame(b, k / b.num_frames, k % b.num_frames, x.data());
+    float* n = all.data() + k * b.frame_stride();
     auto p = [&](int v) { return Eigen::Vector3f(x[v], x[stride + v], x[2 * stride + v]); };
     for (const Tri& t : space.triangles) {
       const Eigen::Vector3f fn = (p(t[1]) - p(t[0])).cross(p(t[2]) - p(t[0]));  // 2 x area
@@ -201,7 +205,7 @@ AlignedFloats reference_normals(const MotionSpace& space) {
       }
     }
   });
-  return normals;
+  split_reference_frames(b, all, normals, displacements);
 }
 
 }  // namespace fourd::graph

@@ -42,8 +42,10 @@ double feature_distance(const Eigen::VectorXf& a, const Eigen::VectorXf& b);
 EdgeSimilarity build_edge_similarity(const MotionSpace& source, const MotionSpace& target,
                                      const SimilarityDefinition& definition);
 
-// Area-weighted unit vertex normals of every reference frame of a space, in the layout of
-// space.blend.frames (padding zero).
-AlignedFloats reference_normals(const MotionSpace& space);
+// Area-weighted unit vertex normals of every reference frame of a space, stored as the positions
+// are (runtime/blend.h): the inputs' in the layout of space.blend.frames, the other references'
+// as fp16 displacements in that of space.blend.displacements (padding zero).
+void reference_normals(const MotionSpace& space, AlignedFloats* normals,
+                       AlignedHalfs* displacements);
 
 }  // namespace fourd::graph

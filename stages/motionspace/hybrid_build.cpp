@@ -105,9 +105,7 @@ class Refinement {
   // Returns to an earlier state of this refinement, dropping the references added since.
   void restore(Refinement&& earlier) {
     *this = std::move(earlier);
-    space_->reference_weights.resize(static_cast<std::size_t>(references_) * space_->num_inputs);
-    space_->frames.resize(static_cast<std::size_t>(references_) * space_->num_frames *
-                          space_->frame_stride());
+    truncate_references(space_, references_);
   }
 
   // Writes the leaf cells into the space.
@@ -189,8 +187,11 @@ struct Test {
   int weight;  // index into the unique test weights
 };
 
+// The mesh of a reference at frame f (runtime/blend.h: an input's frame, or the linear blend
+// plus the stored displacement).
 Eigen::Matrix3Xd frame_positions(const BlendSpace& space, int reference, int f) {
-  const float* p = space.frame(reference, f);
+  std::vector<float> p(space.frame_stride());
+  reference_frame(space, reference, f, p.data());
   const std::size_t stride = space.plane_stride;
   Eigen::Matrix3Xd x(3, space.num_vertices);
   for (int v = 0; v < space.num_vertices; ++v) x.col(v) << p[v], p[stride + v], p[2 * stride + v];
@@ -198,13 +199,9 @@ Eigen::Matrix3Xd frame_positions(const BlendSpace& space, int reference, int f) 
 }
 
 void store_frame(const Eigen::Matrix3Xd& x, int reference, int f, BlendSpace* space) {
-  float* p = space->frame(reference, f);
-  const std::size_t stride = space->plane_stride;
-  for (int v = 0; v < space->num_vertices; ++v) {
-    p[v] = static_cast<float>(x(0, v));
-    p[stride + v] = static_cast<float>(x(1, v));
-    p[2 * stride + v] = static_cast<float>(x(2, v));
-  }
+  std::vector<Vec3f> p(space->num_vertices);
+  for (int v = 0; v < space->num_vertices; ++v) p[v] = x.col(v).cast<float>();
+  set_frame(space, reference, f, p);
 }
 
 // Largest vertex distance between x and the runtime's blend inside `cell` at barycentric
@@ -212,15 +209,11 @@ void store_frame(const Eigen::Matrix3Xd& x, int reference, int f, BlendSpace* sp
 double max_distance(const Eigen::Matrix3Xd& x, const BlendSpace& space,
                     const std::array<int, 3>& corners, const std::array<double, 3>& g, double arc,
                     int f) {
-  const std::size_t stride = space.plane_stride;
   CellNodes nodes;
   cell_shape_functions(space, corners, cell_midpoints(space, corners), g, arc, &nodes);
   Eigen::Matrix3Xd blend = Eigen::Matrix3Xd::Zero(3, space.num_vertices);
   for (int k = 0; k < nodes.count; ++k) {
-    const float* p = space.frame(nodes.references[k], f);
-    for (int v = 0; v < space.num_vertices; ++v) {
-      blend.col(v) += nodes.g[k] * Eigen::Vector3d(p[v], p[stride + v], p[2 * stride + v]);
-    }
+    blend += nodes.g[k] * frame_positions(space, nodes.references[k], f);
   }
   return (x - blend).colwise().norm().maxCoeff();
 }
@@ -229,17 +222,13 @@ double max_distance(const Eigen::Matrix3Xd& x, const BlendSpace& space,
 
 double segment_arc_angle(const BlendSpace& space, int a, int m, int b) {
   if (m < 0) return 0;
-  const std::size_t stride = space.plane_stride;
   double num = 0, den = 0;
   for (int f = 0; f < space.num_frames; ++f) {
-    const float* pa = space.frame(a, f);
-    const float* pm = space.frame(m, f);
-    const float* pb = space.frame(b, f);
+    const Eigen::Matrix3Xd pa = frame_positions(space, a, f);
+    const Eigen::Matrix3Xd pm = frame_positions(space, m, f);
+    const Eigen::Matrix3Xd pb = frame_positions(space, b, f);
     for (int v = 0; v < space.num_vertices; ++v) {
-      auto at = [&](const float* p) {
-        return Eigen::Vector3d(p[v], p[stride + v], p[2 * stride + v]);
-      };
-      const Eigen::Vector3d xa = at(pa), xm = at(pm), xb = at(pb);
+      const Eigen::Vector3d xa = pa.col(v), xm = pm.col(v), xb = pb.col(v);
       const Eigen::Vector3d u = xa - xm, w = xb - xm;
       const double sagitta2 = (xm - 0.5 * (xa + xb)).squaredNorm();
       const double nu = u.norm(), nw = w.norm();

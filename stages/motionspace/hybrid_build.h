@@ -31,8 +31,9 @@ struct HybridBuildOptions {
   // At most this many bisections from the whole simplex to a cell (0: the root alone, made
   // quadratic if linear blending misses epsilon).
   int max_depth = 8;
-  // At most this many added references (each costs #frames x #V x 12 bytes). The root cell's
-  // midpoints take 1 (2 inputs) or 3 (3 inputs); a smaller budget leaves the blend linear.
+  // At most this many added references (each costs #frames x #V x 6 bytes: an fp16
+  // displacement per coordinate, runtime/blend.h). The root cell's midpoints take 1 (2 inputs)
+  // or 3 (3 inputs); a smaller budget leaves the blend linear.
   int max_references = 32;
 
   template <class V>

@@ -4,13 +4,19 @@
 // 10k and 50k vertices; 3 inputs of 40 frames each (the *Line benchmarks: 2 inputs).
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
-#include <utility>
 #include <map>
 #include <numbers>
 #include <random>
+#include <utility>
 #include <vector>
+
+#if defined(__GNUC__) && defined(__x86_64__)
+#include <immintrin.h>
+#endif
 
 #include "runtime/blend.h"
 #include "stages/motionspace/nonlinear_blend.h"
@@ -34,9 +40,11 @@ Eigen::Matrix3Xd input_pose(const test::TestMesh& m, int k, int f) {
 }
 
 // A 3-input space with the three edge-midpoint references and one quadratic (6-node P2) cell
-// over the whole weight triangle: what a build gives before any bisection, and what every
-// cell of a deeper build reads (6 nodes x 2 time samples). Reference frames are the linear
-// blends plus a bend, so the values are realistic; the runtime's cost does not depend on them.
+// over the whole weight triangle: what a build gives before any bisection. An evaluation reads
+// the 3 inputs' float frames and the 3 midpoints' fp16 displacements at 2 time samples (a cell
+// of a deeper build, whose corners are references too, reads up to 6 displacements x 2).
+// Reference frames are the linear blends plus a bend, so the values are realistic; the
+// runtime's cost does not depend on them.
 struct BenchSpace {
   test::TestMesh mesh;
   BlendSpace space;
@@ -99,8 +107,8 @@ std::vector<Query> queries() {
   return q;
 }
 
-std::size_t read_bytes(const BlendSources& s, std::size_t floats) {
-  return (s.count + 1) * floats * sizeof(float);  // sources read + output written
+std::size_t read_bytes(const BlendSources& s, std::size_t values) {
+  return s.read_bytes(values) + values * sizeof(float);  // sources read + output written
 }
 
 void run_hybrid(benchmark::State& state, int inputs) {
@@ -143,57 +151,76 @@ void BM_HybridBlendHot(benchmark::State& state) {
       static_cast<int64_t>(state.iterations() * read_bytes(s, space.frame_stride())));
 }
 
-// Baseline: reads the very frames each hybrid evaluation reads (precomputed lists) once and
-// writes their plain sum; no cell lookup, no coefficients. The floor for a memory-bound blend.
-// Compiled like runtime/blend.cpp's kernel: for the baseline x86-64 and, dispatched at run
-// time, for AVX2 + FMA.
-template <int K>
+// Baseline: reads the very frames each hybrid evaluation reads (precomputed lists: the inputs'
+// float frames and the references' fp16 displacements) once, converts the halves and writes
+// the plain sum; no cell lookup, no coefficients. The floor for a memory-bound blend. Compiled
+// like runtime/blend.cpp's kernel: for the baseline x86-64 (halves converted by
+// half_to_float) and, dispatched at run time, for AVX2 + FMA + F16C.
+template <int K, int H>
 inline __attribute__((always_inline)) void plain_sum_body(const BlendSources& s, std::size_t n,
                                                           float* __restrict out) {
-  const float* src[K];
+  const float* src[std::max(K, 1)]{};
+  const std::uint16_t* dsrc[std::max(H, 1)]{};
   for (int k = 0; k < K; ++k) src[k] = s.sources[k];
+  for (int k = 0; k < H; ++k) dsrc[k] = s.displacement_sources[k];
 #pragma GCC ivdep
   for (std::size_t i = 0; i < n; ++i) {
-    float acc = src[0][i];
-    for (int k = 1; k < K; ++k) acc += src[k][i];
+    float acc = 0;
+    for (int k = 0; k < K; ++k) acc += src[k][i];
+    for (int k = 0; k < H; ++k) acc += half_to_float(dsrc[k][i]);
     out[i] = acc;
   }
 }
 
-template <int K>
-void plain_sum(const BlendSources& s, std::size_t n, float* out) {
-  plain_sum_body<K>(s, n, out);
-}
-
 #if defined(__GNUC__) && defined(__x86_64__)
-template <int K>
-__attribute__((target("avx2,fma"))) void plain_sum_avx2(const BlendSources& s, std::size_t n,
-                                                        float* out) {
-  plain_sum_body<K>(s, n, out);
+// Frames are whole vectors of 8 values (3 planes of a multiple of 16).
+template <int K, int H>
+__attribute__((target("avx2,fma,f16c"))) void plain_sum_avx2(const BlendSources& s, std::size_t n,
+                                                             float* out) {
+  for (std::size_t i = 0; i + 8 <= n; i += 8) {
+    __m256 acc = _mm256_setzero_ps();
+    for (int k = 0; k < K; ++k) acc = _mm256_add_ps(acc, _mm256_loadu_ps(s.sources[k] + i));
+    for (int k = 0; k < H; ++k) {
+      const __m128i h =
+          _mm_loadu_si128(reinterpret_cast<const __m128i*>(s.displacement_sources[k] + i));
+      acc = _mm256_add_ps(acc, _mm256_cvtph_ps(h));
+    }
+    _mm256_storeu_ps(out + i, acc);
+  }
 }
-bool has_avx2_fma() {
+bool has_avx2_fma_f16c() {
   static const bool yes = [] {
     __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
+           __builtin_cpu_supports("f16c");
   }();
   return yes;
 }
 #endif
 
+template <int K, int H>
+void plain_sum(const BlendSources& s, std::size_t n, float* out) {
+#if defined(__GNUC__) && defined(__x86_64__)
+  if (has_avx2_fma_f16c()) return plain_sum_avx2<K, H>(s, n, out);
+#endif
+  plain_sum_body<K, H>(s, n, out);
+}
+
+template <int K, int... H>
+bool plain_sum_halves(const BlendSources& s, std::size_t n, float* out,
+                      std::integer_sequence<int, H...>) {
+  return ((s.displacement_count == H ? (plain_sum<K, H>(s, n, out), true) : false) || ...);
+}
+
 template <int... K>
 void baseline_dispatch(const BlendSources& s, std::size_t n, float* out,
                        std::integer_sequence<int, K...>) {
-#if defined(__GNUC__) && defined(__x86_64__)
-  if (has_avx2_fma()) {
-    ((s.count == K + 1 ? (plain_sum_avx2<K + 1>(s, n, out), true) : false) || ...);
-    return;
-  }
-#endif
-  ((s.count == K + 1 ? (plain_sum<K + 1>(s, n, out), true) : false) || ...);
+  using Halves = std::make_integer_sequence<int, kMaxBlendDisplacements + 1>;
+  ((s.count == K ? plain_sum_halves<K>(s, n, out, Halves{}) : false) || ...);
 }
 
 void baseline(const BlendSources& s, std::size_t n, float* out) {
-  baseline_dispatch(s, n, out, std::make_integer_sequence<int, kMaxBlendSources>{});
+  baseline_dispatch(s, n, out, std::make_integer_sequence<int, kMaxBlendSources + 1>{});
 }
 
 void run_baseline(benchmark::State& state, bool hot, int inputs = 3) {

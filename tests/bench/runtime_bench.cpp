@@ -51,9 +51,11 @@ test::TestMesh tube(int vertices) {
 }
 
 // A one-space graph (cyclic locomotion, 3 inputs, self-loop) of about `vertices` vertices.
-const MotionGraph& bench_graph(int vertices) {
-  static std::map<int, std::unique_ptr<MotionGraph>> cache;
-  auto it = cache.find(vertices);
+// p2: the three references are the midpoints of one quadratic (P2) cell, as hybrid_build makes
+// them; else 4 linear cells split at them.
+const MotionGraph& bench_graph(int vertices, bool p2 = false) {
+  static std::map<std::pair<int, bool>, std::unique_ptr<MotionGraph>> cache;
+  auto it = cache.find({vertices, p2});
   if (it != cache.end()) return *it->second;
   const test::TestMesh mesh = tube(vertices);
   const int nv = static_cast<int>(mesh.positions.cols());
@@ -75,11 +77,12 @@ const MotionGraph& bench_graph(int vertices) {
   s.blend = make_blend_space(3, nv, kFrames);
   const std::array<std::array<double, 3>, 6> refs{
       {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {0.5, 0.5, 0}, {0, 0.5, 0.5}, {0.5, 0, 0.5}}};
-  for (int j = 3; j < 6; ++j) add_reference(&s.blend, refs[j]);
-  for (int j = 0; j < 6; ++j) {
+  for (int j = 0; j < 6; ++j) {  // inputs first: the references are stored relative to them
+    if (j >= 3) add_reference(&s.blend, refs[j]);
     for (int f = 0; f < kFrames; ++f) set_frame(&s.blend, j, f, test::to_vec3f(pose(refs[j], f)));
   }
   s.blend.cells = {{0, 3, 5}, {3, 1, 4}, {5, 4, 2}, {3, 4, 5}};
+  if (p2) s.blend.cells = {{0, 1, 2}};
   for (int k = 0; k < 3; ++k) {
     for (int f = 0; f < kFrames; ++f) {
       const double t = static_cast<double>(f) / (kFrames - 1);
@@ -94,6 +97,7 @@ const MotionGraph& bench_graph(int vertices) {
   GraphSpace gs;
   gs.motion = std::move(s);
   gs.normals = gs.motion.blend.frames;  // same layout; the values do not matter here
+  gs.normal_displacements = gs.motion.blend.displacements;
   g->spaces.push_back(std::move(gs));
   GraphEdge loop;
   loop.from = loop.to = 0;
@@ -106,7 +110,7 @@ const MotionGraph& bench_graph(int vertices) {
   for (std::size_t i = 0; i < sim.values.size(); ++i) sim.values[i] = 0.5f + 0.4f * std::sin(0.37 * i);
   g->edges.push_back(std::move(loop));
   g->check();
-  return *cache.emplace(vertices, std::move(g)).first->second;
+  return *cache.emplace(std::make_pair(vertices, p2), std::move(g)).first->second;
 }
 
 // Bytes a step reads and writes in its blends (positions and normals: every source frame read
@@ -124,13 +128,14 @@ double bytes_per_step(const MotionGraph& g, int steps) {
     space_weights(space, c.state().p, &w);
     BlendSources s;
     hybrid_blend_sources(space.motion.blend, c.state().t, std::span<const float>(w.data(), 3), &s);
-    bytes += 2.0 * (s.count + 1) * space.motion.blend.frame_stride() * sizeof(float);
+    const std::size_t values = space.motion.blend.frame_stride();
+    bytes += 2.0 * (s.read_bytes(values) + values * sizeof(float));  // + the output written
   }
   return bytes / steps;
 }
 
-void run_step(benchmark::State& state, bool normalize) {
-  const MotionGraph& g = bench_graph(static_cast<int>(state.range(0)));
+void run_step(benchmark::State& state, bool normalize, bool p2 = false) {
+  const MotionGraph& g = bench_graph(static_cast<int>(state.range(0)), p2);
   CharacterOptions o;
   o.normalize_normals = normalize;
   Character c(g, TransitionOptions{}, o);
@@ -153,6 +158,7 @@ void run_step(benchmark::State& state, bool normalize) {
 
 void BM_RuntimeStep(benchmark::State& state) { run_step(state, true); }
 void BM_RuntimeStepRawNormals(benchmark::State& state) { run_step(state, false); }
+void BM_RuntimeStepP2(benchmark::State& state) { run_step(state, true, true); }
 
 // A step while a cross-fade runs (two spaces' frames blended): the worst case of a transition.
 void BM_RuntimeStepCrossfade(benchmark::State& state) {
@@ -180,6 +186,7 @@ void BM_RuntimeStepCrossfade(benchmark::State& state) {
 }
 
 BENCHMARK(BM_RuntimeStep)->Arg(16)->Arg(3000)->Arg(10000)->Arg(50000)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_RuntimeStepP2)->Arg(3000)->Arg(10000)->Arg(50000)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_RuntimeStepRawNormals)->Arg(3000)->Arg(10000)->Arg(50000)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_RuntimeStepCrossfade)->Arg(3000)->Arg(10000)->Arg(50000)->Unit(benchmark::kMicrosecond);
 

@@ -46,7 +46,9 @@ TEST_F(AssetTest, RoundTripKeepsEverything) {
     EXPECT_EQ(x.cyclic(), y.cyclic());
     EXPECT_TRUE(std::equal(x.motion.blend.frames.begin(), x.motion.blend.frames.end(),
                            y.motion.blend.frames.begin(), y.motion.blend.frames.end()));
+    EXPECT_TRUE(x.motion.blend.displacements == y.motion.blend.displacements);
     EXPECT_TRUE(std::equal(x.normals.begin(), x.normals.end(), y.normals.begin(), y.normals.end()));
+    EXPECT_TRUE(x.normal_displacements == y.normal_displacements);
     EXPECT_EQ(x.motion.blend.cells, y.motion.blend.cells);
     EXPECT_EQ(x.motion.parameter_map.values, y.motion.parameter_map.values);
     EXPECT_EQ(x.motion.seconds, y.motion.seconds);

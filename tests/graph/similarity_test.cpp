@@ -125,8 +125,23 @@ TEST(GraphSimilarity, LowerBoundIsExactAtInputsAndSamples) {
 
 TEST(GraphSimilarity, NormalsAreUnitAndPointOutwards) {
   const MotionSpace s = test::make_test_space(test::walk_recipe());
-  const AlignedFloats n = graph::reference_normals(s);
+  AlignedFloats n;
+  AlignedHalfs nd;
+  graph::reference_normals(s, &n, &nd);
   ASSERT_EQ(n.size(), s.blend.frames.size());
+  ASSERT_EQ(nd.size(), s.blend.displacements.size());
+  // A reference's normals are stored like its positions: the linear blend of the inputs'
+  // normals plus an fp16 displacement, which gives back unit normals.
+  ASSERT_GT(s.blend.num_references(), s.blend.num_inputs);
+  BlendSpace normals = s.blend;
+  normals.frames = n;
+  normals.displacements = nd;
+  std::vector<float> r(normals.frame_stride());
+  reference_frame(normals, normals.num_inputs, 1, r.data());
+  for (int v = 0; v < normals.num_vertices; ++v) {
+    const int ps = normals.plane_stride;
+    EXPECT_NEAR(Eigen::Vector3f(r[v], r[ps + v], r[2 * ps + v]).norm(), 1.f, 1e-3f);
+  }
   const float* x = s.blend.frames.data();
   const int stride = s.blend.plane_stride, nv = s.blend.num_vertices;
   // Tube centre line is near x = y = 0 at frame 0 of input 0 for the lower rings: the normal

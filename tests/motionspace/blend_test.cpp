@@ -15,6 +15,10 @@ namespace fourd {
 namespace {
 
 constexpr double kDeg = std::numbers::pi / 180;
+// References are read back from fp16 displacements (runtime/blend.h). The hand-made ones here
+// are far from the linear blend (up to 0.7 m on a 1 m tube), where fp16 steps are 0.25 to 0.5
+// mm: a blend through them is exact to a fraction of that.
+constexpr double kHalfTolerance = 5e-4;
 
 // Frame f of input k: the tube bent by a pose that depends on both.
 Eigen::Matrix3Xd pose(const test::TestMesh& m, int k, int f) {
@@ -114,13 +118,14 @@ TEST(Blend, HybridInterpolatesReferencesAndIsContinuous) {
 
   BlendedFrame out = make_blended_frame(space);
   blend_hybrid(space, 0.3, std::vector<float>{1, 1, 1}, &out);
-  EXPECT_LT(test::max_vertex_distance(to_matrix(out), special), 1e-5);
+  EXPECT_LT(test::max_vertex_distance(to_matrix(out), special), kHalfTolerance);
   // At an input the hybrid is that input.
   blend_hybrid(space, 1.0, std::vector<float>{0, 0, 1}, &out);
   EXPECT_LT(test::max_vertex_distance(to_matrix(out), pose(m, 2, 1)), 1e-5);
   // Half way between the centre and input 0: the mean of the two.
   blend_hybrid(space, 0.0, std::vector<float>{4, 1, 1}, &out);  // = 0.5 e0 + 0.5 centre
-  EXPECT_LT(test::max_vertex_distance(to_matrix(out), 0.5 * (pose(m, 0, 0) + special)), 1e-5);
+  EXPECT_LT(test::max_vertex_distance(to_matrix(out), 0.5 * (pose(m, 0, 0) + special)),
+            kHalfTolerance);
 
   // Across the edge between cells {r,0,1} and {r,1,2} (the segment centre - input 1).
   const float d = 1e-4f;
@@ -137,7 +142,8 @@ TEST(Blend, HybridInterpolatesReferencesAndIsContinuous) {
   ASSERT_NO_THROW(line.check());
   BlendedFrame out2 = make_blended_frame(line);
   blend_hybrid(line, 0.0, std::vector<float>{0.25f, 0.75f}, &out2);
-  EXPECT_LT(test::max_vertex_distance(to_matrix(out2), 0.5 * (special + pose(m, 1, 0))), 1e-5);
+  EXPECT_LT(test::max_vertex_distance(to_matrix(out2), 0.5 * (special + pose(m, 1, 0))),
+            kHalfTolerance);
 }
 
 // Quadratic cells: a reference at the midpoint of a cell edge is that cell's P2 node. On a
@@ -158,15 +164,20 @@ TEST(Blend, QuadraticCellsUseTheLagrangeBasis) {
                  &out);
     const Eigen::Matrix3Xd expected = (1 - s) * (1 - 2 * s) * pose(m, 0, 0) +
                                       4 * s * (1 - s) * special + s * (2 * s - 1) * pose(m, 1, 0);
-    EXPECT_LT(test::max_vertex_distance(to_matrix(out), expected), 1e-5) << "s = " << s;
+    EXPECT_LT(test::max_vertex_distance(to_matrix(out), expected), kHalfTolerance) << "s = " << s;
   }
-  // Exactly at the midpoint only the midpoint frame is read (3 nodes x 2 times elsewhere).
+  // Exactly at the midpoint only the midpoint's frame is read: its linear part (the two inputs
+  // at 1/2 each) and its displacement; elsewhere the 2 inputs and 1 displacement x 2 times.
   BlendSources src;
   hybrid_blend_sources(line, 0.0, std::vector<float>{0.5f, 0.5f}, &src);
-  ASSERT_EQ(src.count, 1);
-  EXPECT_EQ(src.sources[0], line.frame(mid, 0));
+  ASSERT_EQ(src.count, 2);
+  ASSERT_EQ(src.displacement_count, 1);
+  EXPECT_EQ(src.displacement_sources[0], line.displacement(mid, 0));
+  EXPECT_EQ(src.coefficients[0], 0.5f);
+  EXPECT_EQ(src.displacement_coefficients[0], 1.f);
   hybrid_blend_sources(line, 0.3, std::vector<float>{0.7f, 0.3f}, &src);
-  EXPECT_EQ(src.count, 6);
+  EXPECT_EQ(src.count, 4);
+  EXPECT_EQ(src.displacement_count, 2);
 
   // A 6-node triangle: references at the three edge midpoints of the weight triangle.
   BlendSpace tri = make_space(m, 3, 1);
@@ -191,13 +202,14 @@ TEST(Blend, QuadraticCellsUseTheLagrangeBasis) {
       expected += l[k] * (2 * l[k] - 1) * pose(m, k, 0);
       expected += 4 * l[(k + 1) % 3] * l[(k + 2) % 3] * mid_shapes[k];
     }
-    EXPECT_LT(test::max_vertex_distance(to_matrix(out3), expected), 2e-5);
+    EXPECT_LT(test::max_vertex_distance(to_matrix(out3), expected), kHalfTolerance);
   }
   // The quadratic blend reproduces the linear one when the midpoints are linear blends, and a
   // triangle missing a midpoint is linear along that edge.
   BlendSources s3;
   hybrid_blend_sources(tri, 0.0, std::vector<float>{0.2f, 0.3f, 0.5f}, &s3);
-  EXPECT_EQ(s3.count, 6);
+  EXPECT_EQ(s3.count, 3);               // the inputs, a_k = sum_j g_j w_{j,k}
+  EXPECT_EQ(s3.displacement_count, 3);  // the midpoints' displacements
   float sum = 0;
   for (int k = 0; k < s3.count; ++k) sum += s3.coefficients[k];
   EXPECT_NEAR(sum, 1.f, 1e-6);
@@ -227,7 +239,7 @@ TEST(Blend, ArcSegmentFollowsARotationExactly) {
     blend_hybrid(line, 0.0, w, &out);
     worst_arc = std::max(worst_arc, test::max_vertex_distance(to_matrix(out), turned(s * theta)));
   }
-  EXPECT_LT(worst_arc, 1e-5);
+  EXPECT_LT(worst_arc, kHalfTolerance);
   // The quadratic basis (theta = 0) does not: the tube's far end is centimetres off.
   line.cell_arc_angles.clear();
   blend_hybrid(line, 0.0, std::vector<float>{0.75f, 0.25f}, &out);
@@ -251,29 +263,115 @@ TEST(Blend, ArcSegmentFollowsARotationExactly) {
   EXPECT_THROW(tri.check(), InputError);
 }
 
-// accumulate_weighted_sum adds to what the output holds; weighted_sum overwrites.
+// accumulate_weighted_sum adds to what the output holds; weighted_sum overwrites. Every count
+// of float and half sources, over a length that is not a whole number of vectors.
 TEST(Blend, WeightedSumsHandleEveryCount) {
-  AlignedFloats a(32), b(32);
-  for (int i = 0; i < 32; ++i) {
+  constexpr int kN = 37;
+  AlignedFloats a(kN), b(kN);
+  AlignedHalfs h(kN);
+  for (int i = 0; i < kN; ++i) {
     a[i] = static_cast<float>(i);
     b[i] = 1.f;
+    h[i] = float_to_half(0.25f * (i - 20));  // exact in fp16
   }
-  for (int count = 1; count <= kMaxBlendSources; ++count) {
-    BlendSources s;
-    s.count = count;
-    for (int k = 0; k < count; ++k) {
-      s.sources[k] = k % 2 ? b.data() : a.data();
-      s.coefficients[k] = 0.5f * (k + 1);
+  for (int count = 0; count <= kMaxBlendSources; ++count) {
+    for (int halves = count == 0 ? 1 : 0; halves <= kMaxBlendDisplacements; ++halves) {
+      BlendSources s;
+      s.count = count;
+      for (int k = 0; k < count; ++k) {
+        s.sources[k] = k % 2 ? b.data() : a.data();
+        s.coefficients[k] = 0.5f * (k + 1);
+      }
+      s.displacement_count = halves;
+      for (int k = 0; k < halves; ++k) {
+        s.displacement_sources[k] = h.data();
+        s.displacement_coefficients[k] = 0.25f * (k + 1);
+      }
+      AlignedFloats out(kN, 100.f), acc(kN, 100.f), pout(kN, 100.f), pacc(kN, 100.f);
+      weighted_sum(s, kN, out.data());
+      accumulate_weighted_sum(s, kN, acc.data());
+      portable_weighted_sum(s, kN, false, pout.data());  // the kernel of CPUs without AVX2
+      portable_weighted_sum(s, kN, true, pacc.data());
+      for (int i = 0; i < kN; ++i) {
+        float expected = 0;
+        for (int k = 0; k < count; ++k) expected += 0.5f * (k + 1) * (k % 2 ? 1.f : float(i));
+        for (int k = 0; k < halves; ++k) expected += 0.25f * (k + 1) * 0.25f * (i - 20);
+        ASSERT_NEAR(out[i], expected, 1e-3) << count << " floats, " << halves << " halves";
+        ASSERT_NEAR(acc[i], 100.f + expected, 1e-3) << count << " floats, " << halves << " halves";
+        ASSERT_NEAR(pout[i], expected, 1e-3) << count << " floats, " << halves << " halves";
+        ASSERT_NEAR(pacc[i], 100.f + expected, 1e-3) << count << " floats, " << halves << " halves";
+      }
     }
-    AlignedFloats out(32, 100.f), acc(32, 100.f);
-    weighted_sum(s, 32, out.data());
-    accumulate_weighted_sum(s, 32, acc.data());
-    for (int i = 0; i < 32; ++i) {
-      float expected = 0;
-      for (int k = 0; k < count; ++k) expected += 0.5f * (k + 1) * (k % 2 ? 1.f : float(i));
-      ASSERT_NEAR(out[i], expected, 1e-3) << count;
-      ASSERT_NEAR(acc[i], 100.f + expected, 1e-3) << count;
+  }
+}
+
+// Half precision: every half converts to float exactly and back; float to half rounds to
+// nearest (ties to even), subnormals and zeros included.
+TEST(Blend, HalfConversionsAreExactAndRoundToNearest) {
+  for (std::uint32_t h = 0; h <= 0xffff; ++h) {
+    const float f = half_to_float(static_cast<std::uint16_t>(h));
+    const std::uint32_t exponent = (h >> 10) & 0x1f, mantissa = h & 0x3ff;
+    if (exponent == 0x1f && mantissa != 0) {
+      ASSERT_TRUE(std::isnan(f)) << h;
+      ASSERT_TRUE(std::isnan(half_to_float(float_to_half(f)))) << h;
+      continue;
     }
+    const double magnitude = exponent == 0    ? std::ldexp(mantissa, -24)
+                             : exponent == 31 ? HUGE_VAL
+                                              : std::ldexp(1024 + mantissa, exponent - 25);
+    ASSERT_EQ(f, static_cast<float>(h & 0x8000 ? -magnitude : magnitude)) << h;
+    ASSERT_EQ(std::signbit(f), (h & 0x8000) != 0) << h;
+    ASSERT_EQ(float_to_half(f), h) << h;
+  }
+  EXPECT_EQ(half_to_float(float_to_half(kMaxHalf)), kMaxHalf);
+  EXPECT_EQ(float_to_half(1e6f), 0x7c00);     // beyond the range: infinity
+  EXPECT_EQ(float_to_half(65520.f), 0x7c00);  // half way to 2^16 rounds up (ties to even)
+  EXPECT_EQ(float_to_half(65519.f), 0x7bff);
+  EXPECT_EQ(float_to_half(1e-9f), 0);                  // below half the smallest subnormal
+  EXPECT_EQ(float_to_half(std::ldexp(1.5f, -24)), 2);  // a tie between subnormals: to even
+  EXPECT_EQ(float_to_half(std::ldexp(2.5f, -24)), 2);
+  EXPECT_EQ(float_to_half(1.f + std::ldexp(1.f, -11)), 0x3c00);  // a tie: to even (1.0)
+  EXPECT_EQ(float_to_half(1.f + 3 * std::ldexp(1.f, -11)), 0x3c02);
+  // Nearest: random floats against the neighbouring halves.
+  std::uint32_t state = 12345;
+  for (int i = 0; i < 100000; ++i) {
+    state = state * 1664525u + 1013904223u;
+    const float x = std::ldexp(static_cast<float>(state >> 8) / (1 << 24), (state & 31) - 26) *
+                    ((state & 0x80) ? -1.f : 1.f);
+    const float y = half_to_float(float_to_half(x));
+    const float up = half_to_float(static_cast<std::uint16_t>(float_to_half(x) + 1));
+    const float down = half_to_float(static_cast<std::uint16_t>(float_to_half(x) - 1));
+    ASSERT_LE(std::abs(y - x), std::abs(up - x)) << x;
+    if ((float_to_half(x) & 0x7fff) != 0) {
+      ASSERT_LE(std::abs(y - x), std::abs(down - x)) << x;
+    }
+  }
+}
+
+// References are stored as displacements from the inputs, so the inputs come first, and a
+// displacement must fit half precision.
+TEST(Blend, ReferencesNeedTheirInputsAndHalfRange) {
+  const test::TestMesh m = test::make_tube(9, 7);
+  BlendSpace space = make_space(m, 2, 2);
+  const int r = add_reference(&space, std::vector<double>{0.5, 0.5});
+  EXPECT_THROW(set_frame(&space, 0, 0, test::to_vec3f(pose(m, 0, 0))), InputError);
+  Eigen::Matrix3Xd far = pose(m, 0, 0);
+  far(1, 3) = 1e5;
+  EXPECT_THROW(set_frame(&space, r, 0, test::to_vec3f(far)), InputError);
+  far(1, 3) = std::nan("");
+  EXPECT_THROW(set_frame(&space, r, 0, test::to_vec3f(far)), InputError);
+  // An unset reference is the linear blend; a set one reads back within fp16's rounding.
+  std::vector<float> x(space.frame_stride());
+  reference_frame(space, r, 1, x.data());
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    ASSERT_NEAR(x[i], 0.5f * (space.frame(0, 1)[i] + space.frame(1, 1)[i]), 1e-6);
+  }
+  const Eigen::Matrix3Xd special = test::bend_tube(m.positions, -90 * kDeg);
+  set_frame(&space, r, 1, test::to_vec3f(special));
+  reference_frame(space, r, 1, x.data());
+  for (int v = 0; v < space.num_vertices; ++v) {
+    const Eigen::Vector3d p(x[v], x[space.plane_stride + v], x[2 * space.plane_stride + v]);
+    ASSERT_LT((p - special.col(v)).norm(), 2.5e-4);
   }
 }
 
@@ -292,6 +390,10 @@ TEST(Blend, CheckRejectsMalformedSpaces) {
   EXPECT_THROW(bad.check(), InputError);
   bad = space;
   bad.frames.pop_back();
+  EXPECT_THROW(bad.check(), InputError);
+  bad = space;
+  add_reference(&bad, std::vector<double>{0.5, 0.5, 0.0});
+  bad.displacements.pop_back();
   EXPECT_THROW(bad.check(), InputError);
   EXPECT_THROW(make_blend_space(4, 10, 2), InputError);
   EXPECT_THROW(set_frame(&space, 0, 0, std::vector<Vec3f>(3)), InputError);

@@ -89,6 +89,11 @@ TEST(MotionSpace, ParameterSelectsWeightsWithoutReallocating) {
 
 TEST(MotionSpace, FileRoundTripAndCorruption) {
   MotionSpace s = small_space();
+  const int mid = add_reference(&s.blend, std::vector<double>{0.5, 0.5});
+  const test::TestMesh tube = test::make_tube(9, 8);
+  for (int i = 0; i < kSamples; ++i) {
+    set_frame(&s.blend, mid, i, test::to_vec3f(test::bend_tube(tube.positions, 0.4 + 0.1 * i)));
+  }
   s.blend.cell_arc_angles = {0.7};
   const std::filesystem::path path =
       std::filesystem::temp_directory_path() /
@@ -103,6 +108,7 @@ TEST(MotionSpace, FileRoundTripAndCorruption) {
   EXPECT_EQ(r.blend.reference_weights, s.blend.reference_weights);
   ASSERT_EQ(r.blend.frames.size(), s.blend.frames.size());
   EXPECT_TRUE(std::equal(r.blend.frames.begin(), r.blend.frames.end(), s.blend.frames.begin()));
+  EXPECT_TRUE(r.blend.displacements == s.blend.displacements);
   EXPECT_EQ(r.seconds, s.seconds);
   EXPECT_EQ(r.parameter_map.values, s.parameter_map.values);
   // A flipped byte in the payload fails the checksum.
@@ -113,13 +119,30 @@ TEST(MotionSpace, FileRoundTripAndCorruption) {
   std::filesystem::remove(path);
 }
 
+// A version 2 file (every reference's frames in float) loads with its references converted to
+// fp16 displacements: the legacy fuzz seed was written by an older fourd from the same session
+// as today's seed.
+TEST(MotionSpace, VersionTwoFileLoadsAsDisplacements) {
+  const std::filesystem::path fuzz = std::filesystem::path(FOURD_SOURCE_DIR) / "tests/fuzz";
+  for (const char* name : {"locomotion", "jump_length"}) {
+    const MotionSpace old =
+        load_motion_space(fuzz / "legacy/mspace" / (std::string(name) + "_v2.mspace"));
+    const MotionSpace today =
+        load_motion_space(fuzz / "corpus/mspace" / (std::string(name) + ".mspace"));
+    EXPECT_GT(old.blend.num_references(), old.blend.num_inputs) << name;
+    EXPECT_EQ(old.blend.reference_weights, today.blend.reference_weights) << name;
+    EXPECT_TRUE(old.blend.frames == today.blend.frames) << name;
+    EXPECT_TRUE(old.blend.displacements == today.blend.displacements) << name;
+  }
+}
+
 TEST(MotionSpace, LoaderRefusesUnknownVersions) {
   const std::filesystem::path path =
       std::filesystem::temp_directory_path() /
       ("fourd_motion_space_version_" + std::to_string(::getpid()) + ".mspace");
   BinaryWriter w;
   w.write<std::int32_t>(0);
-  w.save(path, FileMagic("FOURDMS"), 3);
+  w.save(path, FileMagic("FOURDMS"), 4);
   EXPECT_THROW(load_motion_space(path), InputError);
   std::filesystem::remove(path);
 }

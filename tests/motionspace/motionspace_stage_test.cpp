@@ -105,7 +105,8 @@ TEST(LineReferences, HybridEqualsNonlinearAtEveryReference) {
       for (int v = 0; v < out.num_vertices; ++v) {
         worst = std::max(worst, (out.position(v).cast<double>() - nl.col(v)).norm());
       }
-      EXPECT_LT(worst, 1e-5) << "frame " << f << " w " << sj;
+      // Exact but for the fp16 rounding of the references' displacements (runtime/blend.h).
+      EXPECT_LT(worst, 2.5e-4) << "frame " << f << " w " << sj;
     }
   }
   EXPECT_THROW(add_line_references(w.mesh.positions, w.mesh.triangles, s, &space), InputError);

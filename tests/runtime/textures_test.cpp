@@ -179,26 +179,35 @@ TEST_F(TexturedAssetTest, RoundTripKeepsUvsAndTexturesWithinJpegError) {
   }
 }
 
-// A version 2 asset (no texture section) still loads, without textures, and plays.
+// A version 2 asset (no texture section, every reference's frames and normals in float) still
+// loads, without textures, its references converted to fp16 displacements, and plays. The
+// legacy file was written by an older fourd from the same graph as today's fuzz seed.
 TEST_F(TexturedAssetTest, VersionTwoAssetLoadsWithoutTextures) {
-  Asset a;
-  a.graph = test::make_test_graph();
-  save_asset(file_, a);
-  // Version 3 without textures is the version 2 payload plus its "no textures" byte.
-  std::string bytes = read_file(file_);
-  ASSERT_EQ(bytes.back(), '\0');
-  bytes.pop_back();
-  const std::uint32_t v2 = 2;
-  std::memcpy(bytes.data() + 8, &v2, sizeof v2);
-  write_file_atomic(file_, restamped(bytes));
-  const Asset b = load_asset(file_);
+  const fs::path fuzz = fs::path(FOURD_SOURCE_DIR) / "tests/fuzz";
+  const Asset b = load_asset(fuzz / "legacy/asset/tube_graph_no_turns_v2.fourd");
   EXPECT_TRUE(b.graph.textures.empty());
   Character c(b.graph, b.transitions);
   c.reset(0, 1.2);
   EXPECT_EQ(c.step(0.1).textures.count, 0);
-  // The committed fuzz seed predates version 3.
-  const Asset seed = load_asset(fs::path(FOURD_SOURCE_DIR) / "tests/fuzz/corpus/asset/tube_graph_no_turns.fourd");
-  EXPECT_TRUE(seed.graph.textures.empty());
+  const Asset today = load_asset(fuzz / "corpus/asset/tube_graph_no_turns.fourd");
+  ASSERT_EQ(b.graph.spaces.size(), today.graph.spaces.size());
+  bool any_reference = false;
+  for (std::size_t k = 0; k < b.graph.spaces.size(); ++k) {
+    const GraphSpace& x = b.graph.spaces[k];
+    const GraphSpace& y = today.graph.spaces[k];
+    any_reference |= !x.motion.blend.displacements.empty();
+    EXPECT_TRUE(x.motion.blend.frames == y.motion.blend.frames) << x.name();
+    EXPECT_TRUE(x.motion.blend.displacements == y.motion.blend.displacements) << x.name();
+    EXPECT_TRUE(x.normals == y.normals) << x.name();
+    // Today's reference normals are those of the fp16-rounded reference meshes.
+    ASSERT_EQ(x.normal_displacements.size(), y.normal_displacements.size());
+    for (std::size_t i = 0; i < x.normal_displacements.size(); ++i) {
+      ASSERT_NEAR(half_to_float(x.normal_displacements[i]),
+                  half_to_float(y.normal_displacements[i]), 2e-3)
+          << x.name() << " " << i;
+    }
+  }
+  EXPECT_TRUE(any_reference);
 }
 
 TEST_F(TexturedAssetTest, CorruptTexturePayloadIsRefusedNamingTheTexture) {
