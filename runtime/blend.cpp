@@ -11,6 +11,7 @@
 
 #if defined(__GNUC__) && defined(__x86_64__)
 #include <immintrin.h>
+#include <cpuid.h>
 #endif
 
 #include "pipeline/core/error.h"
@@ -218,14 +219,6 @@ __attribute__((target("avx2,fma,f16c"))) void weighted_sum_k_avx2(const BlendSou
   }
 }
 
-bool has_avx2_fma_f16c() {
-  static const bool yes = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
-           __builtin_cpu_supports("f16c");
-  }();
-  return yes;
-}
 #endif
 
 // One kernel per (float count, half count): a table indexed by K * (kMaxBlendDisplacements + 1)
@@ -254,7 +247,7 @@ void dispatch_weighted_sum(const BlendSources& s, std::size_t n, float* out,
   using Indices = std::make_index_sequence<(kMaxBlendSources + 1) * kHalfCounts>;
   const int index = s.count * kHalfCounts + s.displacement_count;
 #ifdef FOURD_BLEND_AVX2
-  if (allow_avx2 && has_avx2_fma_f16c()) {
+  if (allow_avx2 && cpu_has_avx2_fma_f16c()) {
     static constexpr auto kAvx2 = kernel_table<kAccumulate, true>(Indices{});
     kAvx2[index](s, n, out);
     return;
@@ -287,6 +280,21 @@ void encode_displacement(const BlendSpace& space, int reference, int f, const fl
 }
 
 }  // namespace
+
+bool cpu_has_avx2_fma_f16c() {
+#if defined(__GNUC__) && defined(__x86_64__)
+  static const bool yes = [] {
+    __builtin_cpu_init();
+    // F16C by cpuid (leaf 1, ecx): clang's __builtin_cpu_supports does not know it.
+    unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
+    const bool f16c = __get_cpuid(1, &eax, &ebx, &ecx, &edx) && (ecx & bit_F16C) != 0;
+    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") && f16c;
+  }();
+  return yes;
+#else
+  return false;
+#endif
+}
 
 std::uint16_t float_to_half(float x) {
   // After F. Giesen's float_to_half_fast3_rtne: exact round to nearest, ties to even.

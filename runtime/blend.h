@@ -243,6 +243,9 @@ void accumulate_weighted_sum(const BlendSources& sources, std::size_t n, float* 
 // CPUs without AVX2, FMA and F16C), so tests check it on any CPU.
 void portable_weighted_sum(const BlendSources& sources, std::size_t n, bool accumulate,
                            float* out);
+// Whether this CPU runs the kernels' AVX2 + FMA + F16C variant (chosen once at run time;
+// otherwise the baseline x86-64 one runs).
+bool cpu_has_avx2_fma_f16c();
 
 // The node layout of one cell. midpoints[k] is the reference at the midpoint of the edge
 // opposite corner k (triangles: edges (1, 2), (2, 0), (0, 1)); segments use midpoints[0] for

@@ -188,20 +188,12 @@ __attribute__((target("avx2,fma,f16c"))) void plain_sum_avx2(const BlendSources&
     _mm256_storeu_ps(out + i, acc);
   }
 }
-bool has_avx2_fma_f16c() {
-  static const bool yes = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
-           __builtin_cpu_supports("f16c");
-  }();
-  return yes;
-}
 #endif
 
 template <int K, int H>
 void plain_sum(const BlendSources& s, std::size_t n, float* out) {
 #if defined(__GNUC__) && defined(__x86_64__)
-  if (has_avx2_fma_f16c()) return plain_sum_avx2<K, H>(s, n, out);
+  if (cpu_has_avx2_fma_f16c()) return plain_sum_avx2<K, H>(s, n, out);
 #endif
   plain_sum_body<K, H>(s, n, out);
 }
