@@ -10,7 +10,7 @@
 #include "pipeline/core/image_io.h"
 #include "pipeline/core/log.h"
 #include "stages/motionspace/table1.h"
-#include "stages/timewarp/staged_folder.h"
+#include "pipeline/core/staged_folder.h"
 #include "stages/timewarp/timewarp_io.h"
 
 namespace fourd::motionspace {

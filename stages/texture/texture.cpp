@@ -13,7 +13,7 @@
 #include "pipeline/core/log.h"
 #include "pipeline/core/mesh_io.h"
 #include "stages/texture/texture_io.h"
-#include "stages/timewarp/staged_folder.h"
+#include "pipeline/core/staged_folder.h"
 #include "stages/timewarp/timewarp.h"
 
 namespace fourd::texture {

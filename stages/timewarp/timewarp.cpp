@@ -13,7 +13,7 @@
 #include "pipeline/core/files.h"
 #include "pipeline/core/log.h"
 #include "pipeline/core/mesh_io.h"
-#include "stages/timewarp/staged_folder.h"
+#include "pipeline/core/staged_folder.h"
 #include "stages/timewarp/timewarp_io.h"
 
 namespace fourd::timewarp {

@@ -2,7 +2,6 @@
 
 #include <fmt/format.h>
 #include <tbb/parallel_for.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -14,6 +13,7 @@
 #include "pipeline/core/isosurface.h"
 #include "pipeline/core/log.h"
 #include "pipeline/core/mesh_io.h"
+#include "pipeline/core/staged_folder.h"
 #include "stages/validate/mesh_query.h"
 
 namespace fourd::validate {
@@ -125,11 +125,9 @@ void prepare_oracle_inputs(const Session& session, const OracleOptions& options)
                                  meshes.string()));
   }
   const fs::path target = session.dir("oracle");
-  const fs::path staging = session.dir(fmt::format("oracle.staging-{}", ::getpid()));
-  std::error_code ec;
-  fs::remove_all(staging, ec);
-  ensure_directory(staging);
-  try {
+  StagedFolder staged(target);
+  const fs::path& staging = staged.path();
+  {
     // segment: the ground-truth silhouettes, in segment/'s layout <take>/<camera>/<frame>.png.
     if (fs::is_directory(truth / "silhouettes")) {
       copy_tree(truth / "silhouettes", staging / "segment");
@@ -172,17 +170,9 @@ void prepare_oracle_inputs(const Session& session, const OracleOptions& options)
     used << to_yaml(options);
     write_file_atomic(staging / "options.yaml", std::string(used.c_str()) + "\n");
 
-    // Replace oracle/ as a whole.
-    const fs::path previous = session.dir(fmt::format("oracle.previous-{}", ::getpid()));
-    fs::remove_all(previous, ec);
-    if (fs::exists(target)) fs::rename(target, previous);
-    fs::rename(staging, target);
-    fs::remove_all(previous, ec);
+    staged.commit();  // replaces oracle/ as a whole
     log::info("wrote {}: {} frames re-meshed (voxel {:.1f} mm, noise {:.1f} mm)", target.string(),
               items.size(), 1e3 * options.remesh_voxel, 1e3 * options.noise_sigma);
-  } catch (...) {
-    fs::remove_all(staging, ec);
-    throw;
   }
 }
 

@@ -1,7 +1,6 @@
-#include "stages/timewarp/staged_folder.h"
+#include "pipeline/core/staged_folder.h"
 
 #include <fmt/format.h>
-#include <unistd.h>
 
 #include <system_error>
 
@@ -13,8 +12,7 @@ namespace fourd {
 namespace {
 
 std::filesystem::path sibling(const std::filesystem::path& target, const char* what) {
-  return target.parent_path() /
-         fmt::format("{}.{}-{}", target.filename().string(), what, static_cast<long>(::getpid()));
+  return target.parent_path() / fmt::format(".{}.{}.tmp", target.filename().string(), what);
 }
 
 }  // namespace

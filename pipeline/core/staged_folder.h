@@ -8,7 +8,8 @@ namespace fourd {
 
 class StagedFolder {
  public:
-  // Creates "<target>.staging-<pid>" (removing a leftover of the same name).
+  // Creates the hidden ".<target>.staging.tmp" beside the target, removing what a killed run
+  // left there first (the name is fixed, so the next run finds it).
   explicit StagedFolder(std::filesystem::path target);
   ~StagedFolder();
   StagedFolder(const StagedFolder&) = delete;
