@@ -327,7 +327,7 @@ void drop_run_measurements(nlohmann::json* j) {
 
 std::uint64_t hash_result_file(const fs::path& path) {
   const std::string ext = path.extension().string();
-  if (ext == ".log") return hash_bytes("a log");
+  if (ext == ".log" || ext == ".md") return hash_bytes("a log or a rendered report");
   for (const auto& part : path) {
     if (part == ".jobs") return hash_bytes("a job file");
   }

@@ -109,7 +109,8 @@ FileHashes hash_folders(const fs::path& session_root, const std::vector<std::str
 // jobs ("branch_jobs"), and logs. They differ from run to run, but they are not results: a
 // rerun that only changes them leaves the downstream stages up to date.
 bool is_run_measurement(std::string_view json_key);
-// The content hash of one output file, run records aside: a *.log file and a file under a
+// The content hash of one output file, run records aside: a *.log file, a *.md report (a
+// rendering for people of the JSON beside it, times included) and a file under a
 // `.jobs/` folder (what a split stage's jobs hand each other: align's plan and branch files,
 // with their times and plan id; the stage's last job checks them, nothing after it reads them)
 // hash to a constant: their presence counts, not their bytes. A *.json file is hashed without

@@ -31,7 +31,8 @@ fi
 # logs and the e2e test's own extra folders, hashed by `fourd digest`: results byte for byte,
 # run records (times, CPU, logs; see driver.h is_run_measurement) left out, the completion
 # records too. Temp files of the atomic writers (.<name>.tmp<pid>-<n>) and hidden scratch
-# folders (.<name>.tmp/, e.g. reconstruct's COLMAP workspace) are listed under their own names.
+# folders (.<name>.tmp/: reconstruct's COLMAP workspace, the staging folders of the stages that
+# replace their output folder whole) are listed under their own names.
 manifest() {
   local folders=()
   for d in "$1"/*/; do
@@ -78,8 +79,8 @@ print(sum(json.load(open(f))['seconds'] for f in sys.argv[1:] if os.path.exists(
     wait "$pid" 2> /dev/null || true
     # (1) no partial file under a real name.
     manifest "$session" > "$work/after_kill.sha"
-    temps=$(grep -cE '/\.[^/]*\.tmp([0-9]+-[0-9]+)?[^/]*(/|$)' "$work/after_kill.sha" || true)
-    bad=$(grep -vE '/\.[^/]*\.tmp([0-9]+-[0-9]+)?[^/]*(/|$)' "$work/after_kill.sha" \
+    temps=$(grep -cE '(^|[ /])\.[^/]*\.tmp([0-9]+-[0-9]+)?[^/]*(/|$)' "$work/after_kill.sha" || true)
+    bad=$(grep -vE '(^|[ /])\.[^/]*\.tmp([0-9]+-[0-9]+)?[^/]*(/|$)' "$work/after_kill.sha" \
           | grep -vxFf "$work/reference.sha" || true)
     ok=1
     if [ -n "$bad" ]; then
@@ -101,6 +102,25 @@ print(sum(json.load(open(f))['seconds'] for f in sys.argv[1:] if os.path.exists(
     if ! diff -q "$work/reference.sha" "$work/after_rerun.sha" > /dev/null; then
       echo "FAIL $stage kill $k ($state): the session differs from the uninterrupted run:"
       diff "$work/reference.sha" "$work/after_rerun.sha" | head -8 || true
+      # What differs in the JSON files (run measurements aside: those never count).
+      diff "$work/reference.sha" "$work/after_rerun.sha" | sed -n 's/^> [0-9a-f]*  \(.*\.json\)$/\1/p' \
+        | head -3 | while read -r f; do
+          python3 - "$ref/$f" "$session/$f" <<'PY' || true
+import json, sys
+def flat(d, p=""):
+    if isinstance(d, dict):
+        return {k2: v for k, x in d.items() for k2, v in flat(x, f"{p}{k}.").items()}
+    if isinstance(d, list):
+        return {k2: v for i, x in enumerate(d) for k2, v in flat(x, f"{p}{i}.").items()}
+    return {p.rstrip("."): d}
+a, b = (flat(json.load(open(f))) for f in sys.argv[1:3])
+timing = ("second", "cpu_s", "_us", "cost_ratio", "branch_jobs")
+diffs = [k for k in sorted(set(a) | set(b))
+         if a.get(k) != b.get(k) and not any(t in k for t in timing)]
+for k in diffs[:10]:
+    print(f"  {sys.argv[2]}: {k}: {a.get(k)!r} -> {b.get(k)!r}")
+PY
+        done
       ok=0
       # Start the next kill from the reference again.
       rm -rf "$session"
