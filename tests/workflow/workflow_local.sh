@@ -36,13 +36,17 @@ start=$SECONDS
 runner=$!
 pid=""
 for _ in $(seq 6000); do
-  # The first reconstruct job's stage process, once it has finished a frame (so it is killed
-  # in the middle of the next one); killed by its pid alone.
+  # The first reconstruct job's stage process, once it has written one of its frames' meshes
+  # (so it is killed in the middle of another); killed by its pid alone.
   line=$(pgrep -a -f -- "^[^ ]*/fourd-reconstruct \. --take " | head -n 1 || true)
   if [ -n "$line" ]; then
     take=$(echo "$line" | sed 's/.* --take \([^ ]*\) .*/\1/')
     frames=$(echo "$line" | sed 's/.* --frames \([0-9]*\):\([0-9]*\) .*/\1-\2/')
-    if grep -q "reconstructing frames \[1/" "$s/logs/reconstruct.$take.$frames.log" 2>/dev/null; then
+    done_frames=0
+    for ((f = ${frames%%-*}; f <= ${frames##*-}; ++f)); do
+      [ -f "$s/reconstruct/$take/$(printf '%06d' "$f").ply" ] && done_frames=$((done_frames + 1))
+    done
+    if [ "$done_frames" -ge 1 ]; then
       pid=${line%% *}
       break
     fi
