@@ -88,6 +88,9 @@ class Reader {
 
   void finish() const {
     for (const auto& kv : node_) {
+      if (!kv.first.IsScalar()) {  // e.g. "{a: 1}: 2" makes a map the key
+        fail(file_, kv.first, path_, "a key must be a name, not a list or a map");
+      }
       std::string key = kv.first.as<std::string>();
       if (!known_.count(key)) {
         std::string names;

@@ -439,6 +439,7 @@ PlyVertexLayout vertex_layout(const PlyElement& e, const std::string& file) {
 
 std::uint8_t to_color_byte(double value, bool is_float) {
   double scaled = is_float ? value * 255.0 : value;
+  if (std::isnan(scaled)) return 0;  // clamp passes NaN through, and NaN -> uint8 is undefined
   return static_cast<std::uint8_t>(std::clamp(std::round(scaled), 0.0, 255.0));
 }
 
@@ -761,7 +762,8 @@ std::string_view map_file_name(std::string_view rest) {
 std::string read_mtl_texture(const fs::path& obj_dir, std::string_view mtllib,
                              std::string_view material) {
   const fs::path mtl_path = obj_dir / fs::path(std::string(mtllib));
-  if (!fs::exists(mtl_path)) return "";
+  std::error_code ec;  // a name the file system refuses (too long, ...) is a missing library
+  if (!fs::is_regular_file(mtl_path, ec)) return "";
   const std::string text = read_file(mtl_path);
   LineReader lines(text);
   std::string_view line;
