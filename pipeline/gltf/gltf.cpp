@@ -24,7 +24,26 @@ Eigen::Matrix4d homogeneous(const Eigen::Matrix3d& linear) {
 // Decodes embedded and external images with OpenCV. The pixels are stored as 8-bit BGR
 // (component 3).
 bool decode_image(tinygltf::Image* image, const int index, std::string* err, std::string*, int, int,
-                  const unsigned char* bytes, int size, void*) {
+                  const unsigned char* bytes, int size, void* user_data) {
+  // tinygltf hands over an image's buffer view without checking that the view lies inside its
+  // buffer (user_data is the model being loaded, whose buffers are already read): check it.
+  const auto* model = static_cast<const tinygltf::Model*>(user_data);
+  if (model != nullptr && image->bufferView >= 0) {
+    const tinygltf::BufferView& view = model->bufferViews.at(std::size_t(image->bufferView));
+    const std::size_t buffer_size = model->buffers.at(std::size_t(view.buffer)).data.size();
+    if (view.byteOffset > buffer_size || view.byteLength > buffer_size - view.byteOffset) {
+      if (err)
+        *err += fmt::format("image {}: buffer view {} (offset {}, {} bytes) runs past the end "
+                            "of its buffer ({} bytes)\n",
+                            index, image->bufferView, view.byteOffset, view.byteLength,
+                            buffer_size);
+      return false;
+    }
+  }
+  if (size <= 0) {
+    if (err) *err += fmt::format("image {}: no bytes\n", index);
+    return false;
+  }
   const cv::Mat encoded(1, size, CV_8UC1, const_cast<unsigned char*>(bytes));
   cv::Mat bgr = cv::imdecode(encoded, cv::IMREAD_COLOR);
   if (bgr.empty()) {
@@ -186,8 +205,8 @@ tinygltf::Model read_gltf(const std::filesystem::path& path) {
   const std::string file = path.string();
   const std::string bytes = read_file(path);
   tinygltf::TinyGLTF loader;
-  loader.SetImageLoader(decode_image, nullptr);
   tinygltf::Model model;
+  loader.SetImageLoader(decode_image, &model);
   std::string err, warn;
   const auto* data = reinterpret_cast<const unsigned char*>(bytes.data());
   const bool binary = bytes.size() >= 4 && bytes.compare(0, 4, "glTF") == 0;
