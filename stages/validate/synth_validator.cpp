@@ -236,8 +236,12 @@ StageReport validate_synth(const ValidationContext& ctx) {
   std::uint64_t capture_bytes = 0;
   std::error_code ec;
   if (fs::is_directory(session.capture_dir(), ec)) {
+    // The images and the rig files: hidden files (synth's completion record, whose times change
+    // from run to run, and temp files of an interrupted run) are not the capture.
     for (const auto& e : fs::recursive_directory_iterator(session.capture_dir())) {
-      if (e.is_regular_file()) capture_bytes += e.file_size();
+      if (e.is_regular_file() && e.path().filename().string().front() != '.') {
+        capture_bytes += e.file_size();
+      }
     }
   }
 
