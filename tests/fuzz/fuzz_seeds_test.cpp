@@ -1,7 +1,8 @@
 // The fuzz targets (tests/fuzz/*_fuzz.cpp) run here as ordinary tests, on committed inputs:
 //  - every seed of tests/fuzz/corpus/<target>/ is a valid file its reader accepts (so the seeds
 //    keep reaching deep into the parsers when formats change: regenerate them with
-//    tests/fuzz/make_corpus.py);
+//    tests/fuzz/make_corpus.py), and so is every older-format file of tests/fuzz/legacy/<target>/
+//    (run_fuzz.sh gives those to the fuzzer too, so it reaches the conversion of old files);
 //  - every input the fuzzer found a bug with, tests/fuzz/regressions/<target>/, is now refused
 //    with a typed error (and, in the sanitizer build, without a sanitizer report); those in
 //    regressions/<target>/accepted/ crashed a reader on a file it should take (e.g. an OBJ
@@ -40,7 +41,9 @@ TEST(FuzzTargets, EveryTargetHasSeeds) {
 
 TEST(FuzzTargets, EverySeedIsAccepted) {
   for (const auto& [name, target] : targets()) {
-    for (const fs::path& seed : inputs("corpus", name)) {
+    std::vector<fs::path> seeds = inputs("corpus", name);
+    for (const fs::path& legacy : inputs("legacy", name)) seeds.push_back(legacy);
+    for (const fs::path& seed : seeds) {
       try {
         target(read_file(seed));
       } catch (const Error& e) {

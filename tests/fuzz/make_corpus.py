@@ -9,8 +9,8 @@ little- and big-endian PLY; OBJ with its MTL); the session YAML and control scri
 repository's own. Seeds are kept small (libFuzzer
 mutates small inputs much faster); the test FuzzSeeds.EverySeedIsAccepted checks that every
 seed still parses with today's readers. Files of tests/fuzz/legacy/<target>/ (older format
-versions the readers still load, kept from before a format change) are copied in as seeds too,
-so the fuzzer also reaches the conversion of old files.
+versions the readers still load, kept from before a format change) are not copied here:
+run_fuzz.sh gives that folder to the fuzzer as a second seed corpus.
 """
 import pathlib
 import os
@@ -125,9 +125,6 @@ def main():
             sys.exit(f"make_corpus: no {target} seed of at most {MAX_SEED_BYTES} B")
         for f in files:
             put(target, f.name, f.read_bytes())
-    for d in sorted((ROOT / "tests" / "fuzz" / "legacy").glob("*/")):
-        for f in sorted(d.glob("*")):
-            put(d.name, f.name, f.read_bytes())
     shutil.rmtree(scratch)
 
 

@@ -27,13 +27,17 @@ fi
 fuzz_one() {
   local t="$1" exe="build-fuzz/bin/fuzz_$1" corpus="build-fuzz/corpus/$1"
   local artifacts="build-fuzz/artifacts/$1/" log="build-fuzz/fuzz_$1.log" code
+  # Seeds: the repository's corpus and its older-format files (read only: libFuzzer writes the
+  # inputs it finds into the first folder only).
+  local seeds=("tests/fuzz/corpus/$1")
+  [ -d "tests/fuzz/legacy/$1" ] && seeds+=("tests/fuzz/legacy/$1")
   mkdir -p "$corpus" "$artifacts"
   set +e
   ASAN_OPTIONS=detect_leaks=1:allocator_may_return_null=1 \
   UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
     "$exe" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -malloc_limit_mb=2048 \
       -print_final_stats=1 -close_fd_mask=1 -artifact_prefix="$artifacts" \
-      "$corpus" "tests/fuzz/corpus/$t" > "$log" 2>&1
+      "$corpus" "${seeds[@]}" > "$log" 2>&1
   code=$?
   set -e
   echo "$code" > "build-fuzz/fuzz_$t.exit"
