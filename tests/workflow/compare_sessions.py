@@ -1,62 +1,32 @@
 #!/usr/bin/env python3
-"""Compares what two runs of the same session produced: every mesh (*.ply) and silhouette
-(segment*/ *.png) byte for byte, the asset files, and reports/metrics.json with the timing
-metrics left out (wall-clock times differ from run to run). Exit 1 on any difference.
+"""Compares what two runs of the same session produced: every result file of the stage folders,
+as `fourd digest` hashes them (results byte for byte; run records such as times, CPU, job
+split and logs left out, see pipeline/driver/driver.h is_run_measurement). The inputs
+(capture/, calibration/, ground_truth/), logs and the workflow's own folders are not compared.
+Exit 1 on any difference.
 
-usage: compare_sessions.py SESSION_A SESSION_B
+usage: compare_sessions.py FOURD SESSION_A SESSION_B   (FOURD: the fourd executable)
 """
-import hashlib
-import json
 import os
-import re
+import subprocess
 import sys
 
 SKIP_DIRS = {"workflow", ".snakemake", "logs", "capture", "ground_truth", "calibration"}
-# Metrics that measure time (seconds per frame, wall time, CPU seconds of a transition search,
-# a cost ratio of two timings) rather than results.
-TIMING = re.compile(r"(^|[._])(wall_)?seconds|_seconds_|seconds_per_frame|_cpu_s$|cost_ratio")
 
 
-def digests(root):
-    out = {}
-    for d, dirs, files in os.walk(root):
-        rel_dir = os.path.relpath(d, root)
-        top = rel_dir.split(os.sep)[0]
-        if top in SKIP_DIRS:
-            dirs[:] = []
-            continue
-        for f in files:
-            path = os.path.join(d, f)
-            rel = os.path.relpath(path, root)
-            is_mesh = f.endswith(".ply")
-            is_silhouette = f.endswith(".png") and top.startswith("segment")
-            is_asset = top.startswith("asset")
-            if f.startswith(".") or not (is_mesh or is_silhouette or is_asset):
-                continue
-            with open(path, "rb") as fh:
-                out[rel] = hashlib.sha256(fh.read()).hexdigest()
-    return out
-
-
-def flat_metrics(root):
-    with open(os.path.join(root, "reports", "metrics.json")) as fh:
-        m = json.load(fh)
-    flat = {}
-
-    def walk(node, prefix):
-        if isinstance(node, dict):
-            for k, v in node.items():
-                walk(v, f"{prefix}.{k}" if prefix else k)
-        else:
-            flat[prefix] = node
-
-    walk(m, "")
-    return {k: v for k, v in flat.items() if not TIMING.search(k)}, len(flat)
+def digests(fourd, root, folders):
+    out = subprocess.run([fourd, "digest", root, *folders], check=True, capture_output=True,
+                         text=True).stdout
+    return {path: digest for digest, path in (line.split("  ", 1) for line in out.splitlines())}
 
 
 def main():
-    a, b = sys.argv[1], sys.argv[2]
-    da, db = digests(a), digests(b)
+    fourd, a, b = sys.argv[1:4]
+    folders = sorted({d for root in (a, b) for d in os.listdir(root)
+                      if os.path.isdir(os.path.join(root, d)) and d not in SKIP_DIRS})
+    # A folder only one run wrote is a difference too: hash it in both (absent: no lines).
+    da = digests(fourd, a, [f for f in folders if os.path.isdir(os.path.join(a, f))])
+    db = digests(fourd, b, [f for f in folders if os.path.isdir(os.path.join(b, f))])
     bad = 0
     for rel in sorted(set(da) | set(db)):
         if da.get(rel) != db.get(rel):
@@ -65,14 +35,9 @@ def main():
                 state = "only in A" if rel not in db else "only in B" if rel not in da else "differs"
                 print(f"  {rel}: {state}")
     meshes = sum(1 for r in da if r.endswith(".ply"))
-    print(f"files compared: {len(da)} ({meshes} meshes), differing: {bad}")
-    ma, na = flat_metrics(a)
-    mb, _ = flat_metrics(b)
-    mdiff = [k for k in sorted(set(ma) | set(mb)) if ma.get(k) != mb.get(k)]
-    for k in mdiff[:10]:
-        print(f"  metric {k}: {ma.get(k)} vs {mb.get(k)}")
-    print(f"metrics compared: {len(ma)} of {na} (timing left out), differing: {len(mdiff)}")
-    if bad or mdiff or meshes == 0:
+    print(f"files compared: {len(da)} ({meshes} meshes) in {', '.join(folders)}; "
+          f"differing: {bad}")
+    if bad or meshes == 0 or "reports/metrics.json" not in da:
         print("sessions differ")
         return 1
     print("sessions identical")

@@ -108,7 +108,7 @@ echo "  rerun plan: $(echo $reconstruct_jobs)"
   echo "FAILED: the rerun would redo more (or less) than the killed chunk"; cat "$work/rerun_plan.log"; exit 1; }
 "${smk[@]}" --cores 2 --quiet
 echo "snakemake --cores 2 (first run with the kill, then the rerun): $((SECONDS - start)) s"
-python3 "$here/compare_sessions.py" "$work/local" "$s"
+python3 "$here/compare_sessions.py" "$bin/fourd" "$work/local" "$s"
 
 # expect CODE TEXT COMMAND...: the command exits with CODE and says TEXT, and no stage output
 # changed (the error came before any work).

@@ -59,5 +59,5 @@ jobs=$(grep -c '^rule ' "$s/workflow/Snakefile")
 slurm_logs=$(find "$s/logs/slurm" -name '*.log' | wc -l)
 echo "Slurm ran $slurm_logs job(s) for the workflow's $((jobs - 1)) job rule(s)"
 [ "$slurm_logs" -eq $((jobs - 1)) ] || { echo "FAILED: not every job went through Slurm"; exit 1; }
-python3 "$here/compare_sessions.py" "$reference" "$s"
+python3 "$here/compare_sessions.py" "$bin/fourd" "$reference" "$s"
 echo "slurm ok"
