@@ -302,31 +302,55 @@ class GraphSystem {
     for (int j = 0; j < nodes_; ++j) {
       for (int n : g.node_neighbours[j]) block_id(std::min(j, n), std::max(j, n));
     }
-    blocks_.resize(pairs_.size());
   }
 
   int unknowns() const { return 6 * nodes_; }
 
-  void clear() {
-    for (auto& b : blocks_) b.setZero();
-    gradient_ = Eigen::VectorXd::Zero(6 * nodes_);
-  }
-  // H(a, b) += m for a <= b (the lower triangle follows by symmetry).
-  void add(int a, int b, const Mat6& m) {
-    if (a <= b) {
-      blocks_[ids_.at(key(a, b))] += m;
-    } else {
-      blocks_[ids_.at(key(b, a))] += m.transpose();
+  // Partial sums of the matrix blocks and the gradient. The data terms are summed in a fixed
+  // number of parts over fixed ranges of points, in parallel, and the parts are added in their
+  // order: the result does not depend on the thread count or scheduling (runs are repeatable
+  // bit for bit).
+  struct Part {
+    std::vector<Mat6> blocks;
+    Eigen::VectorXd gradient;
+  };
+
+  // Zeroes `parts` partial sums (at least one: part 0, which add() and add_gradient() fill).
+  void clear(int parts) {
+    parts_.resize(std::max(parts, 1));
+    for (Part& part : parts_) {
+      part.blocks.assign(pairs_.size(), Mat6::Zero());
+      part.gradient = Eigen::VectorXd::Zero(6 * nodes_);
     }
   }
-  void add_gradient(int a, const Vec6& g) { gradient_.segment<6>(6 * a) += g; }
+  Part& part(int i) { return parts_[i]; }
+  // H(a, b) += m for a <= b (the lower triangle follows by symmetry). Thread-safe for distinct
+  // parts.
+  void add(Part& part, int a, int b, const Mat6& m) const {
+    if (a <= b) {
+      part.blocks[ids_.at(key(a, b))] += m;
+    } else {
+      part.blocks[ids_.at(key(b, a))] += m.transpose();
+    }
+  }
+  void add(int a, int b, const Mat6& m) { add(parts_[0], a, b, m); }
+  static void add_gradient(Part& part, int a, const Vec6& g) { part.gradient.segment<6>(6 * a) += g; }
+  void add_gradient(int a, const Vec6& g) { add_gradient(parts_[0], a, g); }
+  // Adds parts 1.. into part 0, in order.
+  void sum_parts() {
+    for (std::size_t i = 1; i < parts_.size(); ++i) {
+      for (std::size_t b = 0; b < pairs_.size(); ++b) parts_[0].blocks[b] += parts_[i].blocks[b];
+      parts_[0].gradient += parts_[i].gradient;
+    }
+    parts_.resize(1);
+  }
 
   SparseMatrix matrix(double damping) const {
     std::vector<Eigen::Triplet<double>> triplets;
     triplets.reserve(pairs_.size() * 72);
     for (std::size_t i = 0; i < pairs_.size(); ++i) {
       const auto [a, b] = pairs_[i];
-      const Mat6& m = blocks_[i];
+      const Mat6& m = parts_[0].blocks[i];
       for (int r = 0; r < 6; ++r) {
         for (int c = 0; c < 6; ++c) {
           double value = m(r, c);
@@ -340,7 +364,7 @@ class GraphSystem {
     h.setFromTriplets(triplets.begin(), triplets.end());
     return h;
   }
-  const Eigen::VectorXd& gradient() const { return gradient_; }
+  const Eigen::VectorXd& gradient() const { return parts_[0].gradient; }
 
  private:
   std::uint64_t key(int a, int b) const { return static_cast<std::uint64_t>(a) * nodes_ + b; }
@@ -354,8 +378,7 @@ class GraphSystem {
   int nodes_ = 0;
   std::unordered_map<std::uint64_t, int> ids_;
   std::vector<std::pair<int, int>> pairs_;
-  std::vector<Mat6> blocks_;
-  Eigen::VectorXd gradient_;
+  std::vector<Part> parts_;
 };
 
 // The Jacobian of a deformed point with respect to one graph node's update (a rotation
@@ -399,18 +422,18 @@ int point_jacobian(const TemplateModel& model, const DeformationState& state, co
 // Adds |P^(1/2) (point - target)|^2 for a point with the given node Jacobians, residual
 // e = point - target and symmetric weight matrix P.
 void add_point_term(const NodeJacobian* jac, int nodes, const Mat3d& p, const Vec3d& e,
-                    GraphSystem& system) {
+                    const GraphSystem& system, GraphSystem::Part& part) {
   const Vec3d pe = p * e;
   for (int a = 0; a < nodes; ++a) {
     Vec6 grad;
     grad << jac[a].s.transpose() * pe, jac[a].w * pe;
-    system.add_gradient(jac[a].node, grad);
+    GraphSystem::add_gradient(part, jac[a].node, grad);
     const Mat3d sp = jac[a].s.transpose() * p;
     for (int b = 0; b < nodes; ++b) {
       if (jac[a].node > jac[b].node) continue;
       Mat6 block;
       block << sp * jac[b].s, jac[b].w * sp, jac[a].w * p * jac[b].s, jac[a].w * jac[b].w * p;
-      system.add(jac[a].node, jac[b].node, block);
+      system.add(part, jac[a].node, jac[b].node, block);
     }
   }
 }
@@ -424,34 +447,44 @@ bool graph_gauss_newton_step(const TemplateModel& model, const std::vector<Corre
                              DeformationState* state) {
   const DeformationGraph& g = model.graph;
   const int nv = static_cast<int>(model.rest.num_vertices());
-  system.clear();
   // Data weight per vertex: nodes / vertices, so that the balance with the regulariser does not
   // depend on the template's resolution.
   const double data_weight = static_cast<double>(g.node_vertex.size()) / nv;
-  NodeJacobian jac[3 * 8];
-  Vec3d deformed;
-
-  // Data: point-to-plane plus a little point-to-point, with P = c (n n^T + mu I).
-  for (int v = 0; v < nv; ++v) {
-    const Correspondence& m = matches[v];
-    if (m.weight <= 0) continue;
-    const double one = 1.0;
-    const int nodes = point_jacobian(model, *state, &v, &one, 1, &deformed, jac);
-    const Mat3d p = data_weight * m.weight *
-                    (m.normal * m.normal.transpose() + options.point_to_point * Mat3d::Identity());
-    add_point_term(jac, nodes, p, deformed - m.point, system);
-  }
-  // Reverse data: frame points pulling the template surface points closest to them.
   const double reverse_weight =
       reverse.empty() ? 0.0 : options.reverse_weight * data_weight * nv / reverse.size();
-  for (const ReverseMatch& m : reverse) {
-    if (m.weight <= 0) continue;
-    const int nodes = point_jacobian(model, *state, m.triangle.data(), m.barycentric.data(), 3,
-                                     &deformed, jac);
-    const Mat3d p = reverse_weight * m.weight *
-                    (m.normal * m.normal.transpose() + options.point_to_point * Mat3d::Identity());
-    add_point_term(jac, nodes, p, deformed - m.point, system);
-  }
+  // Every forward and reverse match adds its term to the part its index falls in.
+  constexpr int kParts = 8;
+  const std::size_t terms = static_cast<std::size_t>(nv) + reverse.size();
+  system.clear(kParts);
+  tbb::parallel_for(0, kParts, [&](int part_index) {
+    GraphSystem::Part& part = system.part(part_index);
+    NodeJacobian jac[3 * 8];
+    Vec3d deformed;
+    const std::size_t begin = terms * part_index / kParts, end = terms * (part_index + 1) / kParts;
+    for (std::size_t i = begin; i < end; ++i) {
+      if (i < static_cast<std::size_t>(nv)) {
+        // Data: point-to-plane plus a little point-to-point, with P = c (n n^T + mu I).
+        const int v = static_cast<int>(i);
+        const Correspondence& m = matches[v];
+        if (m.weight <= 0) continue;
+        const double one = 1.0;
+        const int nodes = point_jacobian(model, *state, &v, &one, 1, &deformed, jac);
+        const Mat3d p = data_weight * m.weight * (m.normal * m.normal.transpose() +
+                                                  options.point_to_point * Mat3d::Identity());
+        add_point_term(jac, nodes, p, deformed - m.point, system, part);
+      } else {
+        // Reverse data: frame points pulling the template surface points closest to them.
+        const ReverseMatch& m = reverse[i - nv];
+        if (m.weight <= 0) continue;
+        const int nodes = point_jacobian(model, *state, m.triangle.data(), m.barycentric.data(),
+                                         3, &deformed, jac);
+        const Mat3d p = reverse_weight * m.weight * (m.normal * m.normal.transpose() +
+                                                     options.point_to_point * Mat3d::Identity());
+        add_point_term(jac, nodes, p, deformed - m.point, system, part);
+      }
+    }
+  });
+  system.sum_parts();
 
   // Regulariser: each node predicts its neighbours' positions as rigidly as possible.
   for (std::size_t j = 0; j < g.node_vertex.size(); ++j) {

@@ -4,6 +4,8 @@
 
 #include <Eigen/Geometry>
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <limits>
 
@@ -12,6 +14,9 @@
 
 namespace fourd::align {
 namespace {
+
+constexpr float kFirstRadius = 0.02f;  // [m]
+constexpr float kRadiusGrowth = 8.0f;
 
 struct QueryState {
   const std::vector<Vec3f>* positions;
@@ -98,6 +103,7 @@ struct SurfaceQuery::Impl {
   std::vector<Tri> triangles;  // the non-degenerate ones
   std::vector<Vec3f> face_normals;
   std::vector<int> source;  // index of each kept triangle in the input mesh
+  Eigen::AlignedBox3f bounds;  // of the kept triangles' vertices
   RTCScene scene = nullptr;
   ~Impl() {
     if (scene) rtcReleaseScene(scene);
@@ -115,10 +121,11 @@ SurfaceQuery::SurfaceQuery(const Mesh& mesh) : impl_(std::make_unique<Impl>()) {
     float len = n.norm();
     if (!(len > 0)) continue;
     s.triangles.push_back(t);
+    for (int k = 0; k < 3; ++k) s.bounds.extend(s.positions[t[k]]);
     s.face_normals.push_back(n / len);
     s.source.push_back(static_cast<int>(f));
   }
-  s.scene = make_embree_scene(s.positions, s.triangles, RTC_BUILD_QUALITY_HIGH);
+  s.scene = make_embree_scene(s.positions, s.triangles, RTC_BUILD_QUALITY_MEDIUM);
 }
 
 SurfaceQuery::~SurfaceQuery() = default;
@@ -129,16 +136,29 @@ SurfaceHit SurfaceQuery::closest(const Vec3f& p, float max_distance, const Vec3f
   if (impl_->triangles.empty()) return hit;
   QueryState state{&impl_->positions, &impl_->triangles, &impl_->face_normals, &impl_->source, p, normal,
                    min_cos, !normal.isZero(), &hit};
-  RTCPointQuery query;
-  query.x = p.x();
-  query.y = p.y();
-  query.z = p.z();
-  query.radius = max_distance;
-  query.time = 0;
-  RTCPointQueryContext context;
-  rtcInitPointQueryContext(&context);
-  rtcPointQuery(impl_->scene, &query, &context, point_query_callback, &state);
-  return hit;
+  // Embree visits every triangle whose box meets the query sphere, in tree order, not nearest
+  // first, so a large radius costs thousands of visits before the sphere shrinks (and the
+  // sphere never shrinks while only normal-incompatible triangles are near). Most queries have
+  // their answer within a few centimetres: search growing spheres, and stop at the first that
+  // holds a hit, which is then the closest within max_distance (anything beyond the sphere is
+  // farther). A sphere that holds the whole mesh is the last one needed.
+  const float everything = std::sqrt(std::max((impl_->bounds.min() - p).squaredNorm(),
+                                              (impl_->bounds.max() - p).squaredNorm())) +
+                           impl_->bounds.diagonal().norm();
+  float radius = std::min(max_distance, kFirstRadius);
+  for (;;) {
+    RTCPointQuery query;
+    query.x = p.x();
+    query.y = p.y();
+    query.z = p.z();
+    query.radius = radius;
+    query.time = 0;
+    RTCPointQueryContext context;
+    rtcInitPointQueryContext(&context);
+    rtcPointQuery(impl_->scene, &query, &context, point_query_callback, &state);
+    if (hit.found || radius >= max_distance || radius >= everything) return hit;
+    radius = std::min({max_distance, radius * kRadiusGrowth, everything});
+  }
 }
 
 const std::vector<Vec3f>& SurfaceQuery::positions() const { return impl_->positions; }
