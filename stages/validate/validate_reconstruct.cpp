@@ -166,6 +166,13 @@ cv::Mat heat_map(const Camera& camera, const Mesh& mesh, const std::vector<doubl
     cv::Scalar colour;
   };
   std::vector<Face> faces;
+  // The colour of every error level (OpenCV's jet map), looked up per face.
+  static const cv::Mat jet = [] {
+    cv::Mat ramp(1, 256, CV_8UC1), colours;
+    for (int x = 0; x < 256; ++x) ramp.at<std::uint8_t>(0, x) = static_cast<std::uint8_t>(x);
+    cv::applyColorMap(ramp, colours, cv::COLORMAP_JET);
+    return colours;
+  }();
   const Eigen::Vector3d eye = camera.center();
   for (const Tri& t : mesh.triangles) {
     Face f;
@@ -190,10 +197,8 @@ cv::Mat heat_map(const Camera& camera, const Mesh& mesh, const std::vector<doubl
     if (!(n.norm() > 0) || n.dot(view) <= 0) continue;  // back face
     const double shade = 0.35 + 0.65 * n.normalized().dot(view);
     const double err = (vertex_mm[t[0]] + vertex_mm[t[1]] + vertex_mm[t[2]]) / 3;
-    cv::Mat level(1, 1, CV_8UC1, cv::Scalar(std::clamp(255 * err / kHeatMaxMm, 0.0, 255.0)));
-    cv::Mat rgb;
-    cv::applyColorMap(level, rgb, cv::COLORMAP_JET);
-    const cv::Vec3b v = rgb.at<cv::Vec3b>(0, 0);
+    const cv::Vec3b v = jet.at<cv::Vec3b>(
+        0, cv::saturate_cast<std::uint8_t>(std::clamp(255 * err / kHeatMaxMm, 0.0, 255.0)));
     f.colour = cv::Scalar(v[0] * shade, v[1] * shade, v[2] * shade);
     f.depth = (c - eye).norm();
     faces.push_back(f);
