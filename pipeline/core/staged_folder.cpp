@@ -50,4 +50,16 @@ void StagedFolder::commit() {
   std::filesystem::remove_all(previous, ec);
 }
 
+void remove_folder(const std::filesystem::path& dir) {
+  const std::filesystem::path doomed = sibling(dir, "removing");
+  std::error_code ec;
+  std::filesystem::remove_all(doomed, ec);
+  if (ec) throw IoError(fmt::format("cannot remove {}: {}", doomed.string(), ec.message()));
+  if (!std::filesystem::exists(dir, ec)) return;
+  std::filesystem::rename(dir, doomed, ec);
+  if (ec) throw IoError(fmt::format("cannot clear {}: {}", dir.string(), ec.message()));
+  std::filesystem::remove_all(doomed, ec);
+  if (ec) throw IoError(fmt::format("cannot remove {}: {}", doomed.string(), ec.message()));
+}
+
 }  // namespace fourd

@@ -26,4 +26,11 @@ class StagedFolder {
   bool committed_ = false;
 };
 
+// Removes a folder and everything in it as one step as far as readers can tell: it is first
+// renamed to the hidden ".<name>.removing.tmp" beside it (what a killed run left under that
+// name is removed first), then deleted. A kill mid-way never leaves a half-emptied folder under
+// the real name. Nothing happens when the folder does not exist; throws IoError naming it when
+// it cannot be moved or removed.
+void remove_folder(const std::filesystem::path& dir);
+
 }  // namespace fourd

@@ -13,6 +13,7 @@
 #include "pipeline/core/image_io.h"
 #include "pipeline/core/log.h"
 #include "pipeline/core/mesh_io.h"
+#include "pipeline/core/staged_folder.h"
 
 namespace fourd::synth {
 namespace {
@@ -119,11 +120,11 @@ void prepare_output_dirs(const Session& session) {
         "overwrite it. Remove stages.synth from session.yaml to process a real capture.",
         capture.string(), kSyntheticMarker));
   }
-  // Stale takes of an earlier run must not survive into this one.
+  // Stale takes of an earlier run must not survive into this one. Each folder goes as a whole
+  // (a capture/ emptied half-way by a killed run would have lost its marker, and the rerun
+  // would refuse it as a real capture).
   for (const fs::path& dir : {capture, session.ground_truth_dir(), session.calibration_dir()}) {
-    std::error_code ec;
-    fs::remove_all(dir, ec);
-    if (ec) throw IoError(fmt::format("cannot clear {}: {}", dir.string(), ec.message()));
+    remove_folder(dir);
     ensure_directory(dir);
   }
   write_file_atomic(capture / kSyntheticMarker, "made by fourd-synth\n");

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "pipeline/core/error.h"
+#include "pipeline/core/staged_folder.h"
 
 namespace fourd {
 namespace {
@@ -72,6 +73,20 @@ TEST_F(FilesTest, FreeSpaceCheckSaysWhatNeedsHowMuch) {
     EXPECT_NE(message.find((dir_ / "out").string()), std::string::npos) << message;
     EXPECT_NE(message.find("MiB free"), std::string::npos) << message;
   }
+}
+
+// A folder is renamed away before it is deleted: what a killed removal left (under the hidden
+// name) is cleared by the next call, and the real name is either whole or gone.
+TEST_F(FilesTest, RemoveFolderClearsWhatAKilledRemovalLeft) {
+  const fs::path capture = dir_ / "capture";
+  const fs::path leftover = dir_ / ".capture.removing.tmp";
+  write_file_atomic(capture / "take" / "cam00" / "000000.png", "image");
+  write_file_atomic(leftover / "take" / "cam03" / "000007.png", "half-removed");
+  remove_folder(capture);
+  EXPECT_FALSE(fs::exists(capture));
+  EXPECT_FALSE(fs::exists(leftover));
+  EXPECT_NO_THROW(remove_folder(capture));  // nothing there: nothing to do
+  EXPECT_FALSE(fs::exists(leftover));
 }
 
 }  // namespace
