@@ -361,8 +361,10 @@ void write_report(const fs::path& out_dir, const std::vector<TakeFrames>& takes,
   report["summary"] = {{"frames_reconstructed", done},
                        {"frames_skipped", skipped},
                        {"skipped", skipped_list},
-                       {"mean_seconds_per_step", steps},
-                       {"seconds_per_frame", run.value("seconds_per_frame", 0.0)}};
+                       {"mean_seconds_per_step", steps}};
+  // Known only when one run did every frame; the --finish job of a split run has no wall time
+  // of its jobs (the driver's completion record has it).
+  if (run.contains("seconds_per_frame")) report["summary"]["seconds_per_frame"] = run["seconds_per_frame"];
   report["frames"] = frames;
   write_file_atomic(out_dir / "report.json", report.dump(1) + "\n");
 }
