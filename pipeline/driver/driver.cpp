@@ -56,6 +56,11 @@ std::vector<FileEntry> list_files(const fs::path& root, const std::vector<std::s
     fs::recursive_directory_iterator it(dir, fs::directory_options::follow_directory_symlink, ec);
     for (; !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
       std::error_code fec;
+      // A split stage's job hand-over files are not results (see hash_result_file).
+      if (it->is_directory(fec) && it->path().filename() == kJobsFolder) {
+        it.disable_recursion_pending();
+        continue;
+      }
       if (!it->is_regular_file(fec) || it->path().filename() == kRecordFile) continue;
       FileEntry e;
       e.path = it->path();
@@ -328,9 +333,6 @@ void drop_run_measurements(nlohmann::json* j) {
 std::uint64_t hash_result_file(const fs::path& path) {
   const std::string ext = path.extension().string();
   if (ext == ".log" || ext == ".md") return hash_bytes("a log or a rendered report");
-  for (const auto& part : path) {
-    if (part == ".jobs") return hash_bytes("a job file");
-  }
   if (ext == ".json") {
     nlohmann::json j = nlohmann::json::parse(read_file(path), nullptr, /*allow_exceptions=*/false);
     if (!j.is_discarded()) {
@@ -505,8 +507,9 @@ std::string Job::part() const {
 }
 
 std::string Job::tree_job_file(const std::string& output_folder) const {
-  if (tree) return output_folder + "/.jobs/plan.bin";
-  if (branch >= 0) return output_folder + "/.jobs/branch" + std::to_string(branch) + ".bin";
+  const std::string jobs = output_folder + "/" + kJobsFolder + "/";
+  if (tree) return jobs + "plan.bin";
+  if (branch >= 0) return jobs + "branch" + std::to_string(branch) + ".bin";
   return {};
 }
 

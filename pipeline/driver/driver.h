@@ -68,6 +68,8 @@ inline constexpr const char* kOracleFolder = "oracle";
 inline constexpr const char* kPlayFolder = "play";
 // Completion record file name, inside the stage's first output folder.
 inline constexpr const char* kRecordFile = ".fourd_stage.json";
+// Folder of a split stage's job hand-over files, inside its output folder (tree_split).
+inline constexpr const char* kJobsFolder = ".jobs";
 
 // Every stage in pipeline order (synth ... validate), without executables.
 const std::vector<StageSpec>& stage_table();
@@ -106,15 +108,17 @@ FileHashes hash_folders(const fs::path& session_root, const std::vector<std::str
 
 // A stage's outputs also record how its run went: the time and CPU it took (keys holding
 // "seconds", ending in "cpu_s" or "_us", cost ratios of two timings), how it was split into
-// jobs ("branch_jobs"), and logs. They differ from run to run, but they are not results: a
-// rerun that only changes them leaves the downstream stages up to date.
+// jobs ("branch_jobs", and the files of its `.jobs/` folder), and logs. They differ from run to
+// run, but they are not results: a rerun that only changes them leaves the downstream stages up
+// to date.
 bool is_run_measurement(std::string_view json_key);
-// The content hash of one output file, run records aside: a *.log file, a *.md report (a
-// rendering for people of the JSON beside it, times included) and a file under a
-// `.jobs/` folder (what a split stage's jobs hand each other: align's plan and branch files,
-// with their times and plan id; the stage's last job checks them, nothing after it reads them)
-// hash to a constant: their presence counts, not their bytes. A *.json file is hashed without
-// its run measurements; every other file (and a .json that does not parse) byte for byte.
+// The content hash of one output file, run records aside: a *.log file and a *.md report (a
+// rendering for people of the JSON beside it, times included) hash to a constant: their
+// presence counts, not their bytes. A *.json file is hashed without its run measurements;
+// every other file (and a .json that does not parse) byte for byte. The files of a `.jobs/`
+// folder (what a split stage's jobs hand each other: align's plan and branch files, as many as
+// the run had jobs; the stage's last job checks them, nothing after it reads them) are not
+// listed by hash_folders, folder_bytes or `fourd digest` at all.
 std::uint64_t hash_result_file(const fs::path& path);
 // Total size in bytes of the regular files under the session sub-folders `folders`.
 std::uint64_t folder_bytes(const fs::path& session_root, const std::vector<std::string>& folders);

@@ -217,10 +217,12 @@ TEST_F(DriverTest, RunRecordsInOutputsAreNotResults) {
   EXPECT_FALSE(is_run_measurement("latency_s"));
   EXPECT_FALSE(is_run_measurement("frame_time_s"));
   EXPECT_FALSE(is_run_measurement("rms_mm"));
+  // A split stage's job files are not results: a run split another way lists other ones.
+  write_text(dir_ / "a" / "result.ply", "mesh");
+  const FileHashes one_job = hash_folders(dir_, {"a"});
   write_text(dir_ / "a" / ".jobs" / "plan.bin", "plan 1");
-  const auto job = hash_result_file(dir_ / "a" / ".jobs" / "plan.bin");
-  write_text(dir_ / "a" / ".jobs" / "plan.bin", "plan 2, other times");
-  EXPECT_EQ(hash_result_file(dir_ / "a" / ".jobs" / "plan.bin"), job);
+  write_text(dir_ / "a" / ".jobs" / "branch2.bin", "branch 2 of 3");
+  EXPECT_EQ(hash_folders(dir_, {"a"}), one_job);
   // A file that is not valid JSON is hashed byte for byte.
   write_text(dir_ / "bad.json", "{\"seconds\": 1");
   const auto bad = hash_result_file(dir_ / "bad.json");
