@@ -1035,8 +1035,17 @@ class CharacterImporter {
       }
     }
     const double fps = options_.fps > 0 ? options_.fps : key_rate(channels);
+    // A take of a studio session is minutes long; a longer clip is a broken file (key times
+    // or spacing), and its frame count would not even fit an int.
+    constexpr double kMaxFrames = 1e6;
+    const double span = (t1 - t0) * fps;
+    if (!(span >= 0 && span < kMaxFrames)) {
+      reader_.fail(fmt::format("animation {} ('{}') spans {} s of keys at {} frames per second, "
+                               "more than {:.0f} frames",
+                               a, take, t1 - t0, fps, kMaxFrames));
+    }
     // A small tolerance so a key stored as float at the last frame time still counts.
-    const int frames = static_cast<int>(std::floor((t1 - t0) * fps + 1e-3)) + 1;
+    const int frames = static_cast<int>(std::floor(span + 1e-3)) + 1;
     std::vector<Pose> poses(frames);
     std::vector<Trs> local;
     std::vector<Eigen::Matrix3d> rotation(joints_.size());
