@@ -319,8 +319,8 @@ class GraphSystem {
   void clear(int parts) {
     parts_.resize(std::max(parts, 1));
     for (Part& part : parts_) {
-      part.blocks.assign(pairs_.size(), Mat6::Zero());
-      part.gradient = Eigen::VectorXd::Zero(6 * nodes_);
+      part.blocks.assign(pairs_.size(), Mat6::Zero());  // reuses the storage
+      part.gradient.setZero(6 * nodes_);
     }
   }
   Part& part(int i) { return parts_[i]; }
@@ -336,13 +336,13 @@ class GraphSystem {
   void add(int a, int b, const Mat6& m) { add(parts_[0], a, b, m); }
   static void add_gradient(Part& part, int a, const Vec6& g) { part.gradient.segment<6>(6 * a) += g; }
   void add_gradient(int a, const Vec6& g) { add_gradient(parts_[0], a, g); }
-  // Adds parts 1.. into part 0, in order.
+  // Adds parts 1.. into part 0, in order. The parts stay allocated: the next clear() zeroes
+  // them instead of allocating them again every Gauss-Newton step.
   void sum_parts() {
     for (std::size_t i = 1; i < parts_.size(); ++i) {
       for (std::size_t b = 0; b < pairs_.size(); ++b) parts_[0].blocks[b] += parts_[i].blocks[b];
       parts_[0].gradient += parts_[i].gradient;
     }
-    parts_.resize(1);
   }
 
   SparseMatrix matrix(double damping) const {
