@@ -2,8 +2,12 @@
 
 #include <Eigen/Geometry>
 #include <fmt/format.h>
+#include <sqlite3.h>
+#include <fmt/ranges.h>
 
 #include <fstream>
+#include <iterator>
+#include <memory>
 #include <sstream>
 #include <unordered_map>
 
@@ -67,7 +71,7 @@ std::vector<Camera> transform_rig(std::vector<Camera> cameras, const Eigen::Matr
 }  // namespace
 
 std::string triangulation_failure(const fs::path& log, int exit_code,
-                                  const std::vector<Camera>& cameras) {
+                                  const std::vector<Camera>& cameras, std::size_t frames) {
   std::ifstream in(log);
   std::string line;
   std::vector<long> features;
@@ -85,9 +89,12 @@ std::string triangulation_failure(const fs::path& log, int exit_code,
     if (long n = number_after(line, "Loading matches..."); n >= 0) matches = n;
     if (long n = number_after(line, "=> Triangulated"); n > 0) points = std::max(points, 0L) + n;
   }
+  frames = std::max<std::size_t>(frames, 1);
   std::string per_camera;
-  for (std::size_t i = 0; i < features.size() && i < cameras.size(); ++i) {
-    per_camera += fmt::format("{}{} {}", i ? ", " : "", cameras[i].name, features[i]);
+  for (std::size_t i = 0; i * frames < features.size() && i < cameras.size(); ++i) {
+    long sum = 0;
+    for (std::size_t k = i * frames; k < (i + 1) * frames && k < features.size(); ++k) sum += features[k];
+    per_camera += fmt::format("{}{} {}", i ? ", " : "", cameras[i].name, sum);
   }
   std::string why;
   if (matches == 0) {
@@ -100,11 +107,12 @@ std::string triangulation_failure(const fs::path& log, int exit_code,
     why = fmt::format("COLMAP point_triangulator failed (exit {})", exit_code);
   }
   return fmt::format(
-      "{} (SIFT features per image: {}); the calibration cannot be checked on this frame — "
+      "{} (SIFT features per camera{}: {}); the calibration cannot be checked on this frame — "
       "cameras too far apart or images too small/untextured for SIFT. Try another frame "
       "(--check-frame), a lower calibration_check.peak_threshold, or a rig with closer "
       "cameras. COLMAP log: {}",
-      why, per_camera.empty() ? "unknown" : per_camera, log.string());
+      why, frames > 1 ? fmt::format(" over {} frames", frames) : std::string(),
+      per_camera.empty() ? "unknown" : per_camera, log.string());
 }
 
 nlohmann::json CalibrationCheckResult::to_json() const {
@@ -121,6 +129,17 @@ nlohmann::json CalibrationCheckResult::to_json() const {
   };
   j["cameras"] = errors(cameras);
   if (!refined.empty()) j["refined"] = errors(refined);
+  if (fit_frames > 0) {
+    auto reprojection = [](const Reprojection& r) {
+      return nlohmann::json{{"mean_error_px", r.mean_error_px}, {"points", r.points}};
+    };
+    j["refinement"] = {{"fit_frames", fit_frames},
+                       {"held_out_frames", held_out_frames},
+                       {"fit_points", fit_points},
+                       {"held_out_before", reprojection(held_out_before)},
+                       {"held_out_after", reprojection(held_out_after)},
+                       {"accepted", !refined_calibration.empty()}};
+  }
   j["warnings"] = warnings;
   return j;
 }
@@ -187,85 +206,410 @@ std::string refinement_rejection(const std::vector<Camera>& before,
   return {};
 }
 
+std::vector<CheckFrame> spread_frames(const std::vector<std::pair<std::string, int>>& takes,
+                                      int count) {
+  long total = 0;
+  for (const auto& take : takes) total += std::max(take.second, 0);
+  std::vector<CheckFrame> out;
+  const long n = std::min<long>(std::max(count, 0), total);
+  for (long i = 0; i < n; ++i) {
+    long index = n == 1 ? 0 : i * (total - 1) / (n - 1);  // strictly increasing: n <= total
+    for (const auto& [take, frames] : takes) {
+      if (index < frames) {
+        out.push_back({take, static_cast<int>(index)});
+        break;
+      }
+      index -= std::max(frames, 0);
+    }
+  }
+  return out;
+}
+
+namespace {
+
+// The COLMAP workspace of one check: the images of every frame with their SIFT features and
+// the matches between the cameras of each frame, and triangulations of some of the frames with
+// given poses.
+//
+// Frame k of camera i is the image "<camera>/<k>.png". One feature_extractor run per camera
+// (the i-th run creates COLMAP camera i + 1, with that camera's intrinsics); COLMAP numbers the
+// images in the order its threads finish them, so their ids are read back from its database:
+// our models must use them, as point_triangulator requires.
+class CheckWorkspace {
+ public:
+  CheckWorkspace(std::string colmap, fs::path dir, const std::vector<Camera>& cameras,
+                 const CalibrationCheckOptions& options)
+      : colmap_(std::move(colmap)), dir_(std::move(dir)), cameras_(cameras), options_(options) {}
+
+  fs::path log() const { return dir_ / "colmap.log"; }
+
+  void add_frames(const std::vector<CheckFrame>& frames, const CheckImageLoader& load) {
+    frames_ = frames.size();
+    const fs::path db = dir_ / "database.db";
+    for (std::size_t i = 0; i < cameras_.size(); ++i) {
+      const Camera& cam = cameras_[i];
+      std::string list;
+      for (std::size_t k = 0; k < frames.size(); ++k) {
+        const cv::Mat image = load(frames[k], cam);
+        if (image.cols != cam.intrinsics.width || image.rows != cam.intrinsics.height) {
+          throw InputError(fmt::format(
+              "calibration check: the image of camera {} in take {} frame {} is {}x{}, its "
+              "calibration says {}x{}",
+              cam.name, frames[k].take, frames[k].frame, image.cols, image.rows,
+              cam.intrinsics.width, cam.intrinsics.height));
+        }
+        write_image_atomic(dir_ / "images" / image_name(i, k), image);
+        list += image_name(i, k) + "\n";
+      }
+      write_file_atomic(dir_ / "list.txt", list);
+      run_colmap_checked(
+          colmap_, "feature_extractor",
+          {"--database_path", db.string(), "--image_path", (dir_ / "images").string(),
+           "--image_list_path", (dir_ / "list.txt").string(), "--ImageReader.camera_model",
+           "OPENCV", "--ImageReader.single_camera", "1", "--ImageReader.camera_params",
+           camera_params(cam), "--SiftExtraction.use_gpu", "0",
+           "--SiftExtraction.num_threads", "2", "--SiftExtraction.max_num_features",
+           std::to_string(options_.max_features), "--SiftExtraction.peak_threshold",
+           fmt::format("{}", options_.peak_threshold)},
+          log());
+    }
+    std::error_code ec;
+    fs::remove(dir_ / "list.txt", ec);
+    read_image_ids(db);
+    // Matches between the cameras of the same frame only: the performer moves between frames.
+    std::string pairs;
+    for (std::size_t k = 0; k < frames_; ++k) {
+      for (std::size_t a = 0; a < cameras_.size(); ++a) {
+        for (std::size_t b = a + 1; b < cameras_.size(); ++b) {
+          pairs += image_name(a, k) + " " + image_name(b, k) + "\n";
+        }
+      }
+    }
+    write_file_atomic(dir_ / "pairs.txt", pairs);
+    run_colmap_checked(colmap_, "matches_importer",
+                       {"--database_path", db.string(), "--match_list_path",
+                        (dir_ / "pairs.txt").string(), "--match_type", "pairs",
+                        "--SiftMatching.use_gpu", "0", "--SiftMatching.num_threads", "2",
+                        "--SiftMatching.guided_matching", "1"},
+                       log());
+  }
+
+  // Triangulates frames `which` (indices into add_frames' list) with the poses and intrinsics
+  // of `rig` (our order), keeping points whose reprojection error is within `max_error_px`, into
+  // <dir>/<name>/ (COLMAP text model, an image per camera and frame). Returns the folder of the
+  // same points in a model with one image per camera ("<camera>.png"; the rig is static, so an
+  // image's observations of every frame belong to one camera): <dir>/<name>/merged.
+  fs::path triangulate(const std::vector<std::size_t>& which, const std::vector<Camera>& rig,
+                       double max_error_px, const std::string& name) const {
+    const fs::path input = dir_ / name / "input";
+    const fs::path model = dir_ / name;
+    write_model(input, rig, which);
+    const std::string tol = fmt::format("{}", max_error_px);
+    const int exit_code = run_colmap(
+        colmap_, "point_triangulator",
+        {"--database_path", (dir_ / "database.db").string(), "--image_path",
+         (dir_ / "images").string(), "--input_path", input.string(), "--output_path",
+         model.string(), "--Mapper.filter_max_reproj_error", tol,
+         "--Mapper.tri_merge_max_reproj_error", tol, "--Mapper.tri_complete_max_reproj_error",
+         tol, "--Mapper.tri_create_max_angle_error", "4", "--Mapper.tri_continue_max_angle_error",
+         "4", "--Mapper.ba_refine_focal_length", "0", "--Mapper.ba_refine_extra_params", "0",
+         "--Mapper.num_threads", "2"},
+        log());
+    if (exit_code != 0) {
+      // COLMAP 3.8 aborts (exit 134, a failed CHECK in its bundle adjustment) when there is
+      // nothing to triangulate: say why instead of showing its stack trace.
+      throw SolverError(triangulation_failure(log(), exit_code, cameras_, frames_));
+    }
+    run_colmap_checked(colmap_, "model_converter",
+                       {"--input_path", model.string(), "--output_path", model.string(),
+                        "--output_type", "TXT"},
+                       log());
+    const fs::path merged = model / "merged";
+    merge_frames(model, rig, merged);
+    return merged;
+  }
+
+ private:
+  std::string image_name(std::size_t i, std::size_t k) const {
+    return fmt::format("{}/{:05d}.png", cameras_[i].name, k);
+  }
+  long image_id(std::size_t i, std::size_t k) const { return image_ids_.at(image_name(i, k)); }
+
+  void read_image_ids(const fs::path& db) {
+    sqlite3* handle = nullptr;
+    const int opened = sqlite3_open_v2(db.c_str(), &handle, SQLITE_OPEN_READONLY, nullptr);
+    std::unique_ptr<sqlite3, decltype(&sqlite3_close)> guard(handle, sqlite3_close);
+    auto fail = [&](const char* what) {
+      throw IoError(fmt::format("{}: cannot {} COLMAP's database: {}", db.string(), what,
+                                handle ? sqlite3_errmsg(handle) : "out of memory"));
+    };
+    if (opened != SQLITE_OK) fail("open");
+    sqlite3_stmt* statement = nullptr;
+    if (sqlite3_prepare_v2(handle, "SELECT image_id, name, camera_id FROM images", -1,
+                           &statement, nullptr) != SQLITE_OK) {
+      fail("read the images of");
+    }
+    std::unique_ptr<sqlite3_stmt, decltype(&sqlite3_finalize)> rows(statement, sqlite3_finalize);
+    std::map<std::string, long> camera_of;
+    int step;
+    while ((step = sqlite3_step(statement)) == SQLITE_ROW) {
+      const unsigned char* name = sqlite3_column_text(statement, 1);
+      if (!name) continue;
+      image_ids_[reinterpret_cast<const char*>(name)] = sqlite3_column_int64(statement, 0);
+      camera_of[reinterpret_cast<const char*>(name)] = sqlite3_column_int64(statement, 2);
+    }
+    if (step != SQLITE_DONE) fail("read the images of");
+    for (std::size_t i = 0; i < cameras_.size(); ++i) {
+      for (std::size_t k = 0; k < frames_; ++k) {
+        auto it = camera_of.find(image_name(i, k));
+        if (it == camera_of.end()) {
+          throw SolverError(fmt::format("COLMAP feature_extractor did not add {} to {} (see {})",
+                                        image_name(i, k), db.string(), log().string()));
+        }
+        if (it->second != static_cast<long>(i + 1)) {
+          throw SolverError(fmt::format(
+              "COLMAP gave {} camera {}, expected {} (one camera per feature_extractor run)",
+              image_name(i, k), it->second, i + 1));
+        }
+      }
+    }
+  }
+
+  // Our calibration as COLMAP's input model for frames `which`: camera i+1 as written by
+  // write_colmap_model, an image per camera and frame with that camera's pose.
+  void write_model(const fs::path& dir, const std::vector<Camera>& rig,
+                   const std::vector<std::size_t>& which) const {
+    write_colmap_model(dir, rig);
+    std::error_code ec;
+    fs::remove(dir / "rig.json", ec);  // COLMAP's readers do not know it
+    const std::vector<std::vector<std::string>> poses = pose_lines(dir / "images.txt");
+    std::string images;
+    for (std::size_t k : which) {
+      for (std::size_t i = 0; i < rig.size(); ++i) {
+        images += fmt::format("{} {} {} {}\n\n", image_id(i, k),
+                              fmt::join(poses[i].begin() + 1, poses[i].begin() + 8, " "),
+                              poses[i][8], image_name(i, k));
+      }
+    }
+    write_file_atomic(dir / "images.txt", images);
+  }
+
+  // The image lines (IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME) of a model that
+  // write_colmap_model wrote, one per camera in order.
+  std::vector<std::vector<std::string>> pose_lines(const fs::path& images_txt) const {
+    std::vector<std::vector<std::string>> out;
+    for (const std::string& line : data_lines(images_txt)) {
+      std::istringstream in(line);
+      std::vector<std::string> tokens;
+      for (std::string t; in >> t;) tokens.push_back(t);
+      if (tokens.size() == 10) out.push_back(tokens);
+    }
+    if (out.size() != cameras_.size()) {
+      throw SolverError(fmt::format("{}: expected {} images, read {}", images_txt.string(),
+                                    cameras_.size(), out.size()));
+    }
+    return out;
+  }
+
+  void merge_frames(const fs::path& model, const std::vector<Camera>& rig,
+                    const fs::path& out) const {
+    const std::size_t n = rig.size();
+    std::vector<std::string> observations(n);     // "X Y POINT3D_ID" triplets per camera
+    std::vector<std::size_t> counts(n, 0);
+    std::map<std::pair<long, long>, std::pair<std::size_t, std::size_t>> remap;
+    const std::vector<std::string> lines = data_lines(model / "images.txt");
+    for (std::size_t l = 0; l + 1 < lines.size(); l += 2) {
+      std::istringstream head(lines[l]);
+      std::vector<std::string> tokens;
+      for (std::string t; head >> t;) tokens.push_back(t);
+      if (tokens.size() < 10) continue;
+      const long id = std::stol(tokens[0]);
+      const long camera_id = std::stol(tokens[8]);
+      if (camera_id < 1 || camera_id > static_cast<long>(n)) {
+        throw SolverError(fmt::format("{}: image {} has camera {}, expected 1..{}",
+                                      (model / "images.txt").string(), id, camera_id, n));
+      }
+      const std::size_t i = static_cast<std::size_t>(camera_id - 1);
+      std::istringstream obs(lines[l + 1]);
+      std::string x, y, point;
+      for (long index = 0; obs >> x >> y >> point; ++index) {
+        remap[{id, index}] = {i, counts[i]++};
+        observations[i] += fmt::format("{}{} {} {}", observations[i].empty() ? "" : " ", x, y,
+                                       point);
+      }
+    }
+    std::string points;
+    for (const std::string& line : data_lines(model / "points3D.txt")) {
+      std::istringstream in(line);
+      std::vector<std::string> tokens;
+      for (std::string t; in >> t;) tokens.push_back(t);
+      if (tokens.size() < 8) continue;
+      std::string row = fmt::format("{}", fmt::join(tokens.begin(), tokens.begin() + 8, " "));
+      for (std::size_t t = 8; t + 1 < tokens.size(); t += 2) {
+        auto it = remap.find({std::stol(tokens[t]), std::stol(tokens[t + 1])});
+        if (it == remap.end()) {
+          throw SolverError(fmt::format("{}: point {} observed in an image it does not list",
+                                        (model / "points3D.txt").string(), tokens[0]));
+        }
+        row += fmt::format(" {} {}", it->second.first + 1, it->second.second);
+      }
+      points += row + "\n";
+    }
+    write_colmap_model(out, rig);
+    std::error_code ec;
+    fs::remove(out / "rig.json", ec);
+    const std::vector<std::vector<std::string>> poses = pose_lines(out / "images.txt");
+    std::string images;
+    for (std::size_t i = 0; i < n; ++i) {
+      images += fmt::format("{}\n{}\n", fmt::join(poses[i], " "), observations[i]);
+    }
+    write_file_atomic(out / "images.txt", images);
+    write_file_atomic(out / "points3D.txt", points);
+  }
+
+  std::string colmap_;
+  fs::path dir_;
+  const std::vector<Camera>& cameras_;
+  const CalibrationCheckOptions& options_;
+  std::size_t frames_ = 0;
+  std::map<std::string, long> image_ids_;  // COLMAP's, by image name
+};
+
+// Mean reprojection error over every observation of a per-camera model, and its points.
+Reprojection overall(const std::vector<Camera>& rig, const fs::path& model) {
+  Reprojection r;
+  double sum = 0;
+  std::size_t observations = 0;
+  for (const auto& [name, e] : reprojection_errors(rig, model, &r.points)) {
+    sum += e.mean_error_px * static_cast<double>(e.observations);
+    observations += e.observations;
+  }
+  r.mean_error_px = observations ? sum / static_cast<double>(observations) : 0;
+  return r;
+}
+
+// Refines `cameras` on the fit frames and judges the result on the held-out frames (see the
+// header). Fills the refinement fields of `result`; a refinement that fails or does not help
+// leaves refined_calibration empty and says why in a warning.
+void refine_calibration(const std::string& colmap, const CheckWorkspace& workspace,
+                        const std::vector<Camera>& cameras, const std::vector<std::size_t>& fit,
+                        const std::vector<std::size_t>& held_out,
+                        const CalibrationCheckOptions& options, const fs::path& work,
+                        CalibrationCheckResult& result) {
+  result.fit_frames = fit.size();
+  result.held_out_frames = held_out.size();
+  const fs::path log = workspace.log();
+  std::vector<Camera> current = cameras;
+  const double tolerances[] = {options.max_error_px,
+                               std::min(options.max_error_px, 2 * options.refine_error_px),
+                               std::min(options.max_error_px, options.refine_error_px)};
+  for (std::size_t step = 0; step < std::size(tolerances); ++step) {
+    const fs::path merged = workspace.triangulate(fit, current, tolerances[step],
+                                                  fmt::format("fit{}", step));
+    std::size_t points = 0;
+    reprojection_errors(current, merged, &points);
+    if (step == 0 && points < static_cast<std::size_t>(options.min_refine_points)) {
+      result.warnings.push_back(fmt::format(
+          "refinement skipped: {} points triangulated on {} frames, fewer than {} "
+          "(calibration_check.min_refine_points); bundle adjustment would fit the noise of so "
+          "few (more calibration_check.refine_frames may help)",
+          points, fit.size(), options.min_refine_points));
+      return;
+    }
+    const fs::path adjusted = work / fmt::format("fit{}", step) / "adjusted";
+    ensure_directory(adjusted);
+    run_colmap_checked(
+        colmap, "bundle_adjuster",
+        {"--input_path", merged.string(), "--output_path", adjusted.string(),
+         "--BundleAdjustment.refine_focal_length", options.refine_focal_length ? "1" : "0",
+         "--BundleAdjustment.refine_principal_point", "0",
+         "--BundleAdjustment.refine_extra_params", "0", "--BundleAdjustment.refine_extrinsics",
+         "1"},
+        log);
+    run_colmap_checked(colmap, "model_converter",
+                       {"--input_path", adjusted.string(), "--output_path", adjusted.string(),
+                        "--output_type", "TXT"},
+                       log);
+    std::vector<Camera> colmap_rig = read_colmap_model(adjusted);
+    result.refined = reprojection_errors(colmap_rig, adjusted);
+    result.fit_points = points;
+    // Back into our world frame: the similarity that best maps the adjusted camera centres
+    // onto the calibrated ones (bundle adjustment fixes the gauge on its first cameras).
+    std::map<std::string, const Camera*> by_name;
+    for (const Camera& c : cameras) by_name[c.name] = &c;
+    std::vector<Eigen::Vector3d> from, to;
+    for (const Camera& c : colmap_rig) {
+      auto it = by_name.find(c.name);
+      if (it == by_name.end()) continue;
+      from.push_back(c.center());
+      to.push_back(it->second->center());
+    }
+    if (from.size() < 3) {
+      throw SolverError("calibration check: bundle adjustment kept fewer than 3 cameras");
+    }
+    colmap_rig = transform_rig(colmap_rig, fit_similarity(from, to));
+    std::map<std::string, Camera> refined_by_name;
+    for (const Camera& c : colmap_rig) refined_by_name[c.name] = c;
+    for (Camera& c : current) {  // our order and names, COLMAP's refined values
+      auto it = refined_by_name.find(c.name);
+      if (it != refined_by_name.end()) c = it->second;
+    }
+  }
+  // The frames the refinement never saw, triangulated with each calibration at the same bound.
+  const double held_out_tol = tolerances[1];
+  result.held_out_before =
+      overall(cameras, workspace.triangulate(held_out, cameras, held_out_tol, "held_out_written"));
+  result.held_out_after =
+      overall(current, workspace.triangulate(held_out, current, held_out_tol, "held_out_refined"));
+  std::string rejected = refinement_rejection(cameras, current, options, result.fit_points);
+  if (rejected.empty() &&
+      !(result.held_out_after.points > 0 &&
+        result.held_out_after.mean_error_px < result.held_out_before.mean_error_px)) {
+    rejected = fmt::format(
+        "refinement rejected: on the {} held-out frames it does not lower the reprojection "
+        "error ({:.3f} px over {} points with the written calibration, {:.3f} px over {} with "
+        "the refined one): it fits the noise of the {} fitted frames",
+        held_out.size(), result.held_out_before.mean_error_px, result.held_out_before.points,
+        result.held_out_after.mean_error_px, result.held_out_after.points, fit.size());
+  }
+  if (!rejected.empty()) {
+    result.warnings.push_back(rejected);
+    result.refined.clear();
+    return;
+  }
+  result.refined_calibration = current;
+  write_colmap_model(work / "refined", current);
+}
+
+}  // namespace
+
 CalibrationCheckResult check_calibration(const std::string& colmap,
                                          const std::vector<Camera>& cameras,
-                                         const std::vector<cv::Mat>& images,
-                                         const CalibrationCheckOptions& options, bool refine,
+                                         const CheckFrame& checked,
+                                         const std::vector<CheckFrame>& refine_frames,
+                                         const CheckImageLoader& load,
+                                         const CalibrationCheckOptions& options,
                                          const fs::path& out_dir) {
-  if (cameras.size() != images.size()) {
-    throw InputError("calibration check: one image per camera is needed");
-  }
+  if (cameras.empty()) throw InputError("calibration check: the rig has no cameras");
   // Work in a fresh hidden folder beside the output and swap it in at the end (a killed run
   // leaves it hidden; the next run starts it afresh).
   const fs::path work = out_dir.parent_path() / ("." + out_dir.filename().string() + ".tmp");
   std::error_code ec;
   fs::remove_all(work, ec);
   ensure_directory(work / "images");
-  const fs::path log = work / "colmap.log";
-  const fs::path db = work / "database.db";
+  CheckWorkspace workspace(colmap, work, cameras, options);
   CalibrationCheckResult result;
+  result.take = checked.take;
+  result.frame = checked.frame;
   try {
-    // One feature_extractor run per camera: COLMAP gives image i and camera i the id i + 1, as
-    // write_colmap_model numbers our calibration, and each camera keeps its own intrinsics.
-    for (std::size_t i = 0; i < cameras.size(); ++i) {
-      const std::string name = cameras[i].name + ".png";
-      write_image_atomic(work / "images" / name, images[i]);
-      write_file_atomic(work / "list.txt", name + "\n");
-      run_colmap_checked(
-          colmap, "feature_extractor",
-          {"--database_path", db.string(), "--image_path", (work / "images").string(),
-           "--image_list_path", (work / "list.txt").string(), "--ImageReader.camera_model",
-           "OPENCV", "--ImageReader.camera_params", camera_params(cameras[i]),
-           "--SiftExtraction.use_gpu", "0", "--SiftExtraction.num_threads", "2",
-           "--SiftExtraction.max_num_features", std::to_string(options.max_features),
-           "--SiftExtraction.peak_threshold", fmt::format("{}", options.peak_threshold)},
-          log);
-    }
-    run_colmap_checked(colmap, "exhaustive_matcher",
-                       {"--database_path", db.string(), "--SiftMatching.use_gpu", "0",
-                        "--SiftMatching.num_threads", "2", "--SiftMatching.guided_matching", "1"},
-                       log);
-    write_colmap_model(work / "input", cameras);
-    fs::remove(work / "input" / "rig.json", ec);  // COLMAP's readers do not know it
-    const std::string tol = fmt::format("{}", options.max_error_px);
-    ensure_directory(work / "triangulated");
-    const int triangulator_exit = run_colmap(colmap, "point_triangulator",
-                                             {"--database_path",
-                                              db.string(),
-                                              "--image_path",
-                                              (work / "images").string(),
-                                              "--input_path",
-                                              (work / "input").string(),
-                                              "--output_path",
-                                              (work / "triangulated").string(),
-                                              "--Mapper.filter_max_reproj_error",
-                                              tol,
-                                              "--Mapper.tri_merge_max_reproj_error",
-                                              tol,
-                                              "--Mapper.tri_complete_max_reproj_error",
-                                              tol,
-                                              "--Mapper.tri_create_max_angle_error",
-                                              "4",
-                                              "--Mapper.tri_continue_max_angle_error",
-                                              "4",
-                                              "--Mapper.ba_refine_focal_length",
-                                              "0",
-                                              "--Mapper.ba_refine_extra_params",
-                                              "0",
-                                              "--Mapper.num_threads",
-                                              "2"},
-                                             log);
-    if (triangulator_exit != 0) {
-      // COLMAP 3.8 aborts (exit 134, a failed CHECK in its bundle adjustment) when there is
-      // nothing to triangulate: say why instead of showing its stack trace.
-      throw SolverError(triangulation_failure(log, triangulator_exit, cameras));
-    }
-    run_colmap_checked(colmap, "model_converter",
-                       {"--input_path", (work / "triangulated").string(), "--output_path",
-                        (work / "triangulated").string(), "--output_type", "TXT"},
-                       log);
+    // Frame 0 is the checked one; the refinement's frames follow: two fitted, one held out.
+    std::vector<CheckFrame> frames = {checked};
+    frames.insert(frames.end(), refine_frames.begin(), refine_frames.end());
+    workspace.add_frames(frames, load);
 
-    result.cameras = reprojection_errors(cameras, work / "triangulated", &result.points);
+    const fs::path checked_model = workspace.triangulate({0}, cameras, options.max_error_px,
+                                                         "triangulated");
+    result.cameras = reprojection_errors(cameras, checked_model, &result.points);
     for (const Camera& c : cameras) {
       const CameraReprojection& e = result.cameras[c.name];
       if (e.observations > 0 && e.observations < 10) {
@@ -286,73 +630,29 @@ CalibrationCheckResult check_calibration(const std::string& colmap,
       }
     }
 
-    if (refine && result.points < static_cast<std::size_t>(options.min_refine_points)) {
-      result.warnings.push_back(fmt::format(
-          "refinement skipped: {} triangulated points, fewer than {} "
-          "(calibration_check.min_refine_points); bundle adjustment would fit the noise of so few",
-          result.points, options.min_refine_points));
-      refine = false;
-    }
-    if (refine) {
-      ensure_directory(work / "adjusted");
-      run_colmap_checked(
-          colmap, "bundle_adjuster",
-          {"--input_path", (work / "triangulated").string(), "--output_path",
-           (work / "adjusted").string(), "--BundleAdjustment.refine_focal_length",
-           options.refine_focal_length ? "1" : "0", "--BundleAdjustment.refine_principal_point",
-           "0", "--BundleAdjustment.refine_extra_params", "0",
-           "--BundleAdjustment.refine_extrinsics", "1"},
-          log);
-      run_colmap_checked(colmap, "model_converter",
-                         {"--input_path", (work / "adjusted").string(), "--output_path",
-                          (work / "adjusted").string(), "--output_type", "TXT"},
-                         log);
-      std::vector<Camera> adjusted = read_colmap_model(work / "adjusted");
-      result.refined = reprojection_errors(adjusted, work / "adjusted");
-      // Back into our world frame: the similarity that best maps the adjusted camera centres
-      // onto the calibrated ones.
-      std::map<std::string, const Camera*> by_name;
-      for (const Camera& c : cameras) by_name[c.name] = &c;
-      std::vector<Eigen::Vector3d> from, to;
-      for (const Camera& c : adjusted) {
-        auto it = by_name.find(c.name);
-        if (it == by_name.end()) continue;
-        from.push_back(c.center());
-        to.push_back(it->second->center());
-      }
-      if (from.size() < 3) {
-        throw SolverError("calibration check: bundle adjustment kept fewer than 3 cameras");
-      }
-      adjusted = transform_rig(adjusted, fit_similarity(from, to));
-      // Our order and names, COLMAP's refined values.
-      std::map<std::string, Camera> refined_by_name;
-      for (const Camera& c : adjusted) refined_by_name[c.name] = c;
-      for (const Camera& c : cameras) {
-        auto it = refined_by_name.find(c.name);
-        result.refined_calibration.push_back(it == refined_by_name.end() ? c : it->second);
-      }
-      // Few or badly spread points let bundle adjustment move cameras far to fit them: such a
-      // result is worse than the calibration it started from.
-      const std::string rejected =
-          refinement_rejection(cameras, result.refined_calibration, options, result.points);
-      if (!rejected.empty()) {
-        result.warnings.push_back(rejected);
-        result.refined_calibration.clear();
-        result.refined.clear();
-      }
-      if (!result.refined_calibration.empty()) {
-        write_colmap_model(work / "refined", result.refined_calibration);
+    if (!refine_frames.empty()) {
+      std::vector<std::size_t> fit, held_out;
+      for (std::size_t k = 1; k < frames.size(); ++k) ((k % 3) ? fit : held_out).push_back(k);
+      if (held_out.empty()) {
+        result.warnings.push_back(
+            "refinement skipped: it needs at least 3 frames (two fitted, one held out)");
+      } else {
+        try {
+          refine_calibration(colmap, workspace, cameras, fit, held_out, options, work, result);
+        } catch (const SolverError& e) {
+          result.warnings.push_back(fmt::format("refinement failed: {}", e.what()));
+          result.refined.clear();
+          result.refined_calibration.clear();
+        }
       }
     }
-
   } catch (const Error&) {
     // Keep COLMAP's log (the error names it) and drop the scratch: images, database, models.
     for (const auto& entry : fs::directory_iterator(work, ec)) {
-      if (entry.path() != log) fs::remove_all(entry.path(), ec);
+      if (entry.path() != workspace.log()) fs::remove_all(entry.path(), ec);
     }
     throw;
   }
-  fs::remove(work / "list.txt", ec);
   fs::remove_all(out_dir, ec);
   fs::rename(work, out_dir, ec);
   if (ec) {

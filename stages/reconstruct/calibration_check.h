@@ -1,16 +1,24 @@
 #pragma once
-// Checks the rig calibration with COLMAP on one frame: SIFT features of every camera's image
-// (feature_extractor, one run per camera so that COLMAP's camera and image ids follow our
-// calibration), exhaustive matching, triangulation with our poses held fixed
+// Checks the rig calibration with COLMAP: SIFT features of every camera's images
+// (feature_extractor, one run per camera so that each camera keeps its own intrinsics),
+// matching between the cameras of the same frame, triangulation with our poses held fixed
 // (point_triangulator), then the mean reprojection error of the triangulated points per camera.
-// Optionally refines the poses (and focal lengths) by COLMAP's bundle adjustment, brings the
-// result back into our world frame (similarity fitted to the camera centres) and writes the
-// refined model.
+//
+// Optionally refines the poses by COLMAP's bundle adjustment. One frame triangulates too few
+// points to constrain a rig (a performer in the middle of a ring of cameras), so refinement
+// uses features from several frames spread through the session: the cameras are static, so the
+// points of all frames are merged into one model with one image per camera before
+// bundle_adjuster runs. Every third frame is held out: those are triangulated with the written
+// and with the refined calibration, and the refinement is kept only when it lowers the
+// reprojection error on them (the error on the frames it was fitted to always drops). The result
+// is brought back into our world frame (similarity fitted to the camera centres) and written.
 //
 // Files in <out>/ (replaced as a whole on success):
-//   images/<camera>.png, database.db, input/ (our calibration), triangulated/ (COLMAP text
-//   model), refined/ (our calibration format, when refining), colmap.log, report.json
+//   images/<camera>/<k>.png (frame k of the check), database.db, pairs.txt, input/ (our
+//   calibration), triangulated/ (the checked frame, COLMAP text model), refined/ (our
+//   calibration format, when refining), colmap.log, report.json
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
@@ -29,7 +37,11 @@ struct CalibrationCheckOptions {
   int frame = 0;                // the checked frame
   double warn_error_px = 1.0;   // warn when a camera's mean reprojection error is above
   bool refine = false;          // refine the calibration by bundle adjustment
-  bool refine_focal_length = true;  // ... focal lengths too (principal points and distortion stay)
+  bool refine_focal_length = false;  // ... focal lengths too (principal points and distortion
+                                     // stay); off: from points in the middle of the rig a focal
+                                     // length is barely separable from the camera's distance
+  int refine_frames = 60;       // frames spread through the session: 2/3 fitted, 1/3 held out
+  double refine_error_px = 2;   // refinement triangulates at max_error_px, then 2x, then 1x this
   int min_refine_points = 100;  // fewer triangulated points: no refinement (it would overfit)
   double max_refine_shift = 0.10;  // refinement moving a camera farther is rejected [m]
   double max_refine_turn_deg = 2.0;  // ... or turning it more [deg]
@@ -48,6 +60,11 @@ struct CalibrationCheckOptions {
       Range{0, 1000});
     v("refine", refine, "refine the calibration with COLMAP's bundle adjustment");
     v("refine_focal_length", refine_focal_length, "refinement also adjusts focal lengths");
+    v("refine_frames", refine_frames,
+      "frames refinement uses, spread through the session (2 of 3 fitted, 1 held out)",
+      Range{3, 1e4});
+    v("refine_error_px", refine_error_px,
+      "final reprojection error bound of the points refinement fits [px]", Range{0.1, 100});
     v("min_refine_points", min_refine_points,
       "refine only with at least this many triangulated points", Range{0, 1e9});
     v("max_refine_shift", max_refine_shift,
@@ -76,24 +93,40 @@ struct CameraReprojection {
   std::size_t observations = 0;
 };
 
+// One frame of a take.
+struct CheckFrame {
+  std::string take;
+  int frame = 0;
+};
+
+// The image of `camera` in `frame` (throws Error when it cannot be read).
+using CheckImageLoader = std::function<cv::Mat(const CheckFrame& frame, const Camera& camera)>;
+
+// Reprojection error over the points triangulated on some frames.
+struct Reprojection {
+  double mean_error_px = 0;
+  std::size_t points = 0;
+};
+
 struct CalibrationCheckResult {
   std::string take;
   int frame = 0;
   std::size_t points = 0;  // triangulated points
   std::map<std::string, CameraReprojection> cameras;  // by camera name
-  std::map<std::string, CameraReprojection> refined;  // after bundle adjustment (when refined)
+  std::map<std::string, CameraReprojection> refined;  // fitted frames, after bundle adjustment
+  std::size_t fit_frames = 0, held_out_frames = 0;  // refinement (0: not refined)
+  std::size_t fit_points = 0;                       // points of the last bundle adjustment
+  Reprojection held_out_before, held_out_after;     // held-out frames, written vs refined
   std::vector<Camera> refined_calibration;  // empty: not refined (or the refinement rejected)
   std::vector<std::string> warnings;
   nlohmann::json to_json() const;
 };
 
-// Runs the check on the given capture images (one per camera, same order) in `out_dir`. Throws
-// SolverError when a COLMAP step fails (naming the step and quoting its log), InputError when
-// the images do not fit the cameras.
-// Why point_triangulator failed, from its log (features per image, matched pairs,
-// triangulated points), as one message naming the cameras and what to try.
+// Why point_triangulator failed, from its log (features per image, `frames` images per camera
+// in camera order; matched pairs; triangulated points), as one message naming the cameras and
+// what to try.
 std::string triangulation_failure(const std::filesystem::path& log, int exit_code,
-                                  const std::vector<Camera>& cameras);
+                                  const std::vector<Camera>& cameras, std::size_t frames = 1);
 
 // Why a refined calibration (`after`, same order as `before`) must not replace `before`: a
 // camera moved or turned more than the options allow. Empty: accept it.
@@ -101,11 +134,21 @@ std::string refinement_rejection(const std::vector<Camera>& before,
                                  const std::vector<Camera>& after,
                                  const CalibrationCheckOptions& options, std::size_t points);
 
+// Runs the check on `checked` in `out_dir`, and refines the calibration on `refine_frames`
+// when that is not empty (at least 3). Throws SolverError when a COLMAP step fails (naming the
+// step and quoting its log), InputError when an image does not fit its camera.
 CalibrationCheckResult check_calibration(const std::string& colmap,
                                          const std::vector<Camera>& cameras,
-                                         const std::vector<cv::Mat>& images,
-                                         const CalibrationCheckOptions& options, bool refine,
+                                         const CheckFrame& checked,
+                                         const std::vector<CheckFrame>& refine_frames,
+                                         const CheckImageLoader& load,
+                                         const CalibrationCheckOptions& options,
                                          const std::filesystem::path& out_dir);
+
+// `count` frames spread evenly through the takes (in order, each take's frames 0..n-1), fewer
+// when the takes hold fewer.
+std::vector<CheckFrame> spread_frames(const std::vector<std::pair<std::string, int>>& takes,
+                                      int count);
 
 // Mean reprojection error per image of a COLMAP text model (cameras from `cameras`, matched by
 // image name "<camera>.png"; points3D.txt and the POINTS2D of images.txt from `model_dir`).

@@ -431,32 +431,47 @@ void run_calibration_check(const Session& session, const Rig& rig,
               check.executable);
     return;
   }
-  std::vector<cv::Mat> images;
-  for (const Camera& c : rig.cameras) images.push_back(read_capture_image(session, c, take, frame));
   const bool refine = check.refine || request.refine;
+  std::vector<CheckFrame> refine_frames;
+  if (refine) {
+    std::vector<std::pair<std::string, int>> frame_counts;
+    for (const TakeFrames& t : takes) frame_counts.emplace_back(t.name, t.frames);
+    refine_frames = spread_frames(frame_counts, check.refine_frames);
+  }
   log::info("checking the calibration with COLMAP on take {} frame {}{}", take, frame,
-            refine ? " (with refinement)" : "");
+            refine ? fmt::format(" (with refinement on {} frames)", refine_frames.size()) : "");
   log::Timer timer;
   CalibrationCheckResult result;
   try {
-    result = check_calibration(colmap, rig.cameras, images, check, refine,
-                               out_dir / "calibration_check");
+    result = check_calibration(
+        colmap, rig.cameras, {take, frame}, refine_frames,
+        [&](const CheckFrame& f, const Camera& c) {
+          return read_capture_image(session, c, f.take, f.frame);
+        },
+        check, out_dir / "calibration_check");
   } catch (const Error& e) {
     log::warn("calibration check failed: {}", e.what());
     if (request.only) throw;
     return;
   }
-  result.take = take;
-  result.frame = frame;
   for (const auto& [name, e] : result.cameras) {
     std::string after;
     if (result.refined.count(name)) {
-      after = fmt::format(", after refinement {:.3f} px", result.refined.at(name).mean_error_px);
+      after = fmt::format(", after refinement {:.3f} px (fitted frames)",
+                          result.refined.at(name).mean_error_px);
     }
     log::info("camera {}: mean reprojection error {:.3f} px over {} points{}", name,
               e.mean_error_px, e.observations, after);
   }
   for (const auto& w : result.warnings) log::warn("{}", w);
+  if (result.fit_frames > 0) {
+    log::info("refinement: fitted to {} points of {} frames; on {} held-out frames the mean "
+              "reprojection error is {:.3f} px over {} points with the written calibration, "
+              "{:.3f} px over {} points with the refined one",
+              result.fit_points, result.fit_frames, result.held_out_frames,
+              result.held_out_before.mean_error_px, result.held_out_before.points,
+              result.held_out_after.mean_error_px, result.held_out_after.points);
+  }
   if (!result.refined_calibration.empty()) {
     log::info("refined calibration written to {}", (out_dir / "calibration_check" / "refined").string());
   }

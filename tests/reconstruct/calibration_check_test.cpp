@@ -66,5 +66,22 @@ TEST(CalibrationCheck, RefinementThatMovesACameraFarIsRejected) {
             std::string::npos);
 }
 
+// Refinement frames are spread evenly over every take, first and last frame included, each
+// frame at most once.
+TEST(CalibrationCheck, RefinementFramesSpreadThroughTheSession) {
+  const std::vector<std::pair<std::string, int>> takes = {{"jump", 4}, {"walk", 6}};
+  auto text = [](const std::vector<CheckFrame>& frames) {
+    std::string out;
+    for (const CheckFrame& f : frames) out += f.take + std::to_string(f.frame) + " ";
+    return out;
+  };
+  EXPECT_EQ(text(spread_frames(takes, 4)), "jump0 jump3 walk2 walk5 ");
+  EXPECT_EQ(text(spread_frames(takes, 1)), "jump0 ");
+  EXPECT_EQ(spread_frames(takes, 10).size(), 10u);
+  EXPECT_EQ(text(spread_frames(takes, 50)), text(spread_frames(takes, 10)));  // all of them
+  EXPECT_TRUE(spread_frames({}, 5).empty());
+  EXPECT_TRUE(spread_frames(takes, 0).empty());
+}
+
 }  // namespace
 }  // namespace fourd::reconstruct
