@@ -415,7 +415,8 @@ StageReport validate_reconstruct(const ValidationContext& ctx) {
       for (int i = 0; i < count; ++i) {
         const Camera& camera = cameras[static_cast<std::size_t>(i) * cameras.size() / count];
         std::vector<cv::Mat> panels;
-        for (const auto& [name, mesh] : meshes) {
+        for (const auto& [name, surface] : meshes) {
+          const Mesh& mesh = surface;  // a lambda cannot capture a structured binding (C++17)
           std::vector<double> mm(mesh.positions.size());
           tbb::parallel_for(std::size_t{0}, mm.size(),
                             [&](std::size_t v) { mm[v] = 1000 * to_truth(mesh.positions[v]); });

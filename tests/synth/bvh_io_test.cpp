@@ -138,7 +138,8 @@ Frame Time: 0.04
   const BvhMotion motion = read_bvh(dir / "xyz.bvh");
   ASSERT_EQ(motion.frames.size(), 3u);
   EXPECT_DOUBLE_EQ(motion.fps(), 25);
-  auto head = [&](int f) {
+  // A vector, not Eigen's expression: that would refer into the temporary poses.
+  auto head = [&](int f) -> Eigen::Vector3d {
     return forward_kinematics(motion.skeleton, motion.frames[f])[2].translation();
   };
   // Rest: root 1 m up, chest 10 cm above, head 10 cm in front (BVH +z = our +x).
