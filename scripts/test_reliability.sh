@@ -3,8 +3,9 @@
 # run the tests (whose workflow session, build/workflow_local/local, is the uninterrupted
 # reference; REFERENCE names another finished session, e.g. build/e2e_tiny):
 #   1. kill-and-rerun: KILLS (default 1) random SIGKILLs per stage on a copy of REFERENCE;
-#   2. the unit tests of the parsing and runtime topics under ASan + UBSan (clang, build-fuzz/);
-#   3. every fuzz target for FUZZ_SECONDS (default 30) on the same sanitized tree.
+#   2. every unit test and the end-to-end workflow session under ASan + UBSan (clang,
+#      build-sanitize/, scripts/test_sanitizers.sh);
+#   3. every fuzz target for FUZZ_SECONDS (default 30) (clang, build-fuzz/).
 # Prints the wall time of each step. Environment: REFERENCE, KILLS, KILL_SEED (default: the
 # commit's hash, printed, so a failure can be replayed), FUZZ_SECONDS.
 set -euo pipefail
@@ -27,5 +28,6 @@ test -f "$reference/reports/metrics.json" \
 echo "kill seed $seed ($kills kill(s) per stage)"
 step "kill and rerun" env FOURD_BIN=build/bin bash tests/e2e/kill_rerun.sh "$reference" \
   "$scratch/kill" "$kills" "$seed"
-step "sanitizer unit tests" bash scripts/test_sanitizers.sh
+step "sanitizers: unit tests" bash scripts/test_sanitizers.sh --unit
+step "sanitizers: end to end" bash scripts/test_sanitizers.sh --e2e
 step "fuzzing" bash tests/fuzz/run_fuzz.sh "$fuzz_seconds"
