@@ -40,6 +40,14 @@ std::vector<std::string> data_lines(const fs::path& path) {
   return lines;
 }
 
+// The whitespace-separated words of a line of a COLMAP text model.
+std::vector<std::string> words(const std::string& line) {
+  std::istringstream in(line);
+  std::vector<std::string> out;
+  for (std::string w; in >> w;) out.push_back(w);
+  return out;
+}
+
 // The similarity s R x + t that best maps `from` onto `to` (least squares, Umeyama).
 Eigen::Matrix4d fit_similarity(const std::vector<Eigen::Vector3d>& from,
                                const std::vector<Eigen::Vector3d>& to) {
@@ -399,10 +407,8 @@ class CheckWorkspace {
   std::vector<std::vector<std::string>> pose_lines(const fs::path& images_txt) const {
     std::vector<std::vector<std::string>> out;
     for (const std::string& line : data_lines(images_txt)) {
-      std::istringstream in(line);
-      std::vector<std::string> tokens;
-      for (std::string t; in >> t;) tokens.push_back(t);
-      if (tokens.size() == 10) out.push_back(tokens);
+      std::vector<std::string> tokens = words(line);
+      if (tokens.size() == 10) out.push_back(std::move(tokens));
     }
     if (out.size() != cameras_.size()) {
       throw SolverError(fmt::format("{}: expected {} images, read {}", images_txt.string(),
@@ -419,9 +425,7 @@ class CheckWorkspace {
     std::map<std::pair<long, long>, std::pair<std::size_t, std::size_t>> remap;
     const std::vector<std::string> lines = data_lines(model / "images.txt");
     for (std::size_t l = 0; l + 1 < lines.size(); l += 2) {
-      std::istringstream head(lines[l]);
-      std::vector<std::string> tokens;
-      for (std::string t; head >> t;) tokens.push_back(t);
+      const std::vector<std::string> tokens = words(lines[l]);
       if (tokens.size() < 10) continue;
       const long id = std::stol(tokens[0]);
       const long camera_id = std::stol(tokens[8]);
@@ -440,9 +444,7 @@ class CheckWorkspace {
     }
     std::string points;
     for (const std::string& line : data_lines(model / "points3D.txt")) {
-      std::istringstream in(line);
-      std::vector<std::string> tokens;
-      for (std::string t; in >> t;) tokens.push_back(t);
+      const std::vector<std::string> tokens = words(line);
       if (tokens.size() < 8) continue;
       std::string row = fmt::format("{}", fmt::join(tokens.begin(), tokens.begin() + 8, " "));
       for (std::size_t t = 8; t + 1 < tokens.size(); t += 2) {
