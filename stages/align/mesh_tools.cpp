@@ -14,6 +14,8 @@
 #include <cmath>
 #include <cstdint>
 #include <numeric>
+#include <queue>
+#include <limits>
 #include <unordered_map>
 
 #include "pipeline/core/error.h"
@@ -349,6 +351,50 @@ std::vector<std::vector<int>> vertex_neighbours(const Mesh& mesh) {
   std::vector<std::vector<int>> rings(mesh.num_vertices());
   for (auto v : om.vertices()) {
     for (auto w : om.vv_range(v)) rings[v.idx()].push_back(w.idx());
+  }
+  return rings;
+}
+
+std::vector<int> geodesic_update(const Mesh& mesh, const std::vector<std::vector<int>>& rings,
+                                 int source, int source_id, double radius,
+                                 std::vector<double>& dist, std::vector<int>& owner) {
+  using Item = std::pair<double, int>;
+  std::priority_queue<Item, std::vector<Item>, std::greater<>> heap;
+  std::vector<int> reached;
+  if (dist[source] > 0) {
+    dist[source] = 0;
+    owner[source] = source_id;
+  }
+  heap.emplace(0.0, source);
+  reached.push_back(source);
+  while (!heap.empty()) {
+    auto [d, v] = heap.top();
+    heap.pop();
+    if (d > dist[v]) continue;
+    for (int w : rings[v]) {
+      const double nd = d + (mesh.positions[v] - mesh.positions[w]).cast<double>().norm();
+      if (nd < dist[w] && nd <= radius) {
+        if (dist[w] == std::numeric_limits<double>::infinity()) reached.push_back(w);
+        dist[w] = nd;
+        owner[w] = source_id;
+        heap.emplace(nd, w);
+      }
+    }
+  }
+  return reached;
+}
+
+std::vector<std::vector<int>> edge_neighbours(const Mesh& mesh) {
+  std::vector<std::vector<int>> rings(mesh.num_vertices());
+  for (const Tri& t : mesh.triangles) {
+    for (int k = 0; k < 3; ++k) {
+      rings[t[k]].push_back(t[(k + 1) % 3]);
+      rings[t[k]].push_back(t[(k + 2) % 3]);
+    }
+  }
+  for (auto& ring : rings) {
+    std::sort(ring.begin(), ring.end());
+    ring.erase(std::unique(ring.begin(), ring.end()), ring.end());
   }
   return rings;
 }

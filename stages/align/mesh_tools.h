@@ -37,4 +37,15 @@ Mesh remesh_to_vertex_count(const Mesh& mesh, int target_vertices, int iteration
 // mesh is not manifold.
 std::vector<std::vector<int>> vertex_neighbours(const Mesh& mesh);
 
+// Neighbours of every vertex through the triangles' edges, sorted; no manifold requirement.
+std::vector<std::vector<int>> edge_neighbours(const Mesh& mesh);
+
+// Dijkstra along mesh edges (`rings`: neighbours of every vertex) from `source`, lowering
+// `dist` where it finds shorter paths (so repeated calls give the distance to the nearest
+// source) and recording `source_id` in `owner` there. Vertices farther than `radius` are not
+// expanded. Returns the vertices it reached.
+std::vector<int> geodesic_update(const Mesh& mesh, const std::vector<std::vector<int>>& rings,
+                                 int source, int source_id, double radius,
+                                 std::vector<double>& dist, std::vector<int>& owner);
+
 }  // namespace fourd::align

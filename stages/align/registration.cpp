@@ -9,10 +9,10 @@
 #include <cmath>
 #include <fmt/format.h>
 #include <limits>
-#include <queue>
 #include <unordered_map>
 
 #include "pipeline/core/error.h"
+#include "pipeline/core/log.h"
 #include "stages/align/mesh_tools.h"
 
 namespace fourd::align {
@@ -137,39 +137,96 @@ std::vector<ReverseMatch> find_reverse_correspondences(const TemplateModel& mode
   return out;
 }
 
-// ---- Geodesic neighbourhoods on the template ---------------------------------------------
+// ---- Landmarks: the template's tips matched to the frame's -------------------------------
 
-// Dijkstra along mesh edges from `source`, lowering `dist` where it finds shorter paths (so
-// repeated calls give the distance to the nearest source) and recording the source in `owner`.
-// Vertices farther than `radius` are not expanded. Returns the vertices it reached.
-std::vector<int> geodesic_update(const Mesh& mesh, const std::vector<std::vector<int>>& rings,
-                                 int source, int source_id, double radius,
-                                 std::vector<double>& dist, std::vector<int>& owner) {
-  using Item = std::pair<double, int>;
-  std::priority_queue<Item, std::vector<Item>, std::greater<>> heap;
-  std::vector<int> reached;
-  if (dist[source] > 0) {
-    dist[source] = 0;
-    owner[source] = source_id;
-  }
-  heap.emplace(0.0, source);
-  reached.push_back(source);
-  while (!heap.empty()) {
-    auto [d, v] = heap.top();
-    heap.pop();
-    if (d > dist[v]) continue;
-    for (int w : rings[v]) {
-      const double nd = d + (mesh.positions[v] - mesh.positions[w]).cast<double>().norm();
-      if (nd < dist[w] && nd <= radius) {
-        if (dist[w] == std::numeric_limits<double>::infinity()) reached.push_back(w);
-        dist[w] = nd;
-        owner[w] = source_id;
-        heap.emplace(nd, w);
-      }
+struct Landmark {
+  int vertex = -1;               // template vertex (a tip)
+  Vec3d point = Vec3d::Zero();   // the frame's matched tip
+};
+
+int nearest_vertex(const std::vector<Vec3f>& positions, const Vec3f& p) {
+  int best = -1;
+  float best_d = std::numeric_limits<float>::infinity();
+  for (std::size_t i = 0; i < positions.size(); ++i) {
+    const float d = (positions[i] - p).squaredNorm();
+    if (d < best_d) {
+      best_d = d;
+      best = static_cast<int>(i);
     }
   }
-  return reached;
+  return best;
 }
+
+// Landmarks for the frame's tips the fit missed: left uncovered, or covered without a template
+// tip near (a limb that moved too far for closest points is left behind, or covered by
+// stretched neighbouring surface). The frame's tips are seen from the frame vertex nearest the
+// template's centre in the fit; a covered frame tip with a template tip within anchor_distance
+// anchors it, the missed ones are matched to the remaining template tips. Empty when no tip is
+// missed or none of them matches.
+std::vector<Landmark> missed_tip_landmarks(const TemplateModel& model,
+                                           const std::vector<Vec3f>& positions,
+                                           const SurfaceQuery& target,
+                                           const RegistrationOptions& options) {
+  const Extremities& tips = model.extremities;
+  if (options.landmark_weight <= 0 || tips.vertices.empty()) return {};
+  Mesh frame;
+  frame.positions = target.positions();
+  frame.triangles = target.triangles();
+  const int centre = nearest_vertex(frame.positions, positions[tips.centre]);
+  const Extremities frame_tips =
+      find_extremities(frame, edge_neighbours(frame), centre, options.extremities);
+  Mesh fitted;
+  fitted.positions = positions;
+  fitted.triangles = model.rest.triangles;
+  const SurfaceQuery fitted_query(fitted);
+
+  std::vector<Landmark> landmarks;
+  std::vector<char> template_used(tips.vertices.size(), 0);
+  Extremities missed;
+  std::vector<Vec3d> missed_at;
+  for (std::size_t j = 0; j < frame_tips.vertices.size(); ++j) {
+    const Vec3f& p = frame.positions[frame_tips.vertices[j]];
+    const bool covered =
+        fitted_query.closest(p, static_cast<float>(options.coverage_distance)).found;
+    int nearest = -1;
+    double nearest_distance = options.extremities.anchor_distance;
+    for (std::size_t i = 0; i < tips.vertices.size(); ++i) {
+      const double d = (positions[tips.vertices[i]] - p).norm();
+      if (!template_used[i] && d < nearest_distance) {
+        nearest = static_cast<int>(i);
+        nearest_distance = d;
+      }
+    }
+    if (covered && nearest >= 0) {
+      template_used[nearest] = 1;
+      landmarks.push_back({tips.vertices[nearest], p.cast<double>()});
+    } else {
+      missed.vertices.push_back(frame_tips.vertices[j]);
+      missed.geodesic.push_back(frame_tips.geodesic[j]);
+      missed_at.push_back(p.cast<double>());
+    }
+  }
+  if (missed.vertices.empty()) return {};
+  Extremities free;
+  std::vector<Vec3d> free_at;
+  for (std::size_t i = 0; i < tips.vertices.size(); ++i) {
+    if (template_used[i]) continue;
+    free.vertices.push_back(tips.vertices[i]);
+    free.geodesic.push_back(tips.geodesic[i]);
+    free_at.push_back(positions[tips.vertices[i]].cast<double>());
+  }
+  const std::vector<TipMatch> matches =
+      match_extremities(free, free_at, missed, missed_at, options.extremities);
+  for (const TipMatch& m : matches) {
+    landmarks.push_back({free.vertices[m.template_tip], missed_at[m.frame_tip]});
+  }
+  log::debug("tips: {} in the frame, {} missed by the fit, {} of them matched; {} landmarks",
+             frame_tips.vertices.size(), missed.vertices.size(), matches.size(), landmarks.size());
+  if (matches.empty()) return {};
+  return landmarks;
+}
+
+// ---- The deformation graph ---------------------------------------------------------------
 
 DeformationGraph build_graph(const Mesh& mesh, const std::vector<std::vector<int>>& rings,
                              int node_count, int influences) {
@@ -441,7 +498,8 @@ void add_point_term(const NodeJacobian* jac, int nodes, const Mat3d& p, const Ve
 // One Gauss-Newton step of the graph energy; updates `state` (rotations, translations).
 // Returns false when the system could not be factorised.
 bool graph_gauss_newton_step(const TemplateModel& model, const std::vector<Correspondence>& matches,
-                             const std::vector<ReverseMatch>& reverse, double stiffness,
+                             const std::vector<ReverseMatch>& reverse,
+                             const std::vector<Landmark>& landmarks, double stiffness,
                              const RegistrationOptions& options, GraphSystem& system,
                              Eigen::SimplicialLDLT<SparseMatrix>& solver, bool analyse,
                              DeformationState* state) {
@@ -485,6 +543,16 @@ bool graph_gauss_newton_step(const TemplateModel& model, const std::vector<Corre
     }
   });
   system.sum_parts();
+
+  // Landmarks: point-to-point, each weighing as much as landmark_weight vertices.
+  for (const Landmark& l : landmarks) {
+    NodeJacobian jac[8];
+    Vec3d deformed;
+    const double one = 1.0;
+    const int nodes = point_jacobian(model, *state, &l.vertex, &one, 1, &deformed, jac);
+    add_point_term(jac, nodes, options.landmark_weight * data_weight * Mat3d::Identity(),
+                   deformed - l.point, system, system.part(0));
+  }
 
   // Regulariser: each node predicts its neighbours' positions as rigidly as possible.
   for (std::size_t j = 0; j < g.node_vertex.size(); ++j) {
@@ -647,6 +715,12 @@ TemplateModel build_template_model(const Mesh& template_mesh, const Registration
   model.rings = vertex_neighbours(model.rest);
   model.ring_weights = cotangent_weights(model.rest, model.rings);
   model.graph = build_graph(model.rest, model.rings, options.graph_nodes, options.node_influences);
+  Vec3f centroid = Vec3f::Zero();
+  for (const Vec3f& p : model.rest.positions) centroid += p;
+  centroid /= static_cast<float>(model.rest.num_vertices());
+  model.extremities = find_extremities(model.rest, model.rings,
+                                       nearest_vertex(model.rest.positions, centroid),
+                                       options.extremities);
   return model;
 }
 
@@ -741,9 +815,12 @@ Eigen::Isometry3d rigid_icp(const std::vector<Vec3f>& points, const std::vector<
   return total;
 }
 
-DeformationState register_to_surface(const TemplateModel& model, const DeformationState& start,
-                                     const SurfaceQuery& target,
-                                     const RegistrationOptions& options) {
+namespace {
+
+// One registration from `start`, the landmarks pulling the coarse levels.
+DeformationState register_pass(const TemplateModel& model, const DeformationState& start,
+                               const SurfaceQuery& target, const RegistrationOptions& options,
+                               const std::vector<Landmark>& landmarks) {
   DeformationState state = start;
   std::vector<Vec3f> positions = deform_with_graph(model, state);
   if (options.rigid_iterations > 0) {
@@ -775,7 +852,10 @@ DeformationState register_to_surface(const TemplateModel& model, const Deformati
               ? find_reverse_correspondences(model, positions, samples, max_distance, robust_scale,
                                              options)
               : std::vector<ReverseMatch>{};
-      if (!graph_gauss_newton_step(model, matches, reverse, options.stiffness[level], options,
+      const bool coarse = level < options.landmark_levels;
+      if (!graph_gauss_newton_step(model, matches, reverse,
+                                   coarse ? landmarks : std::vector<Landmark>{},
+                                   options.stiffness[level], options,
                                    system, solver, !analysed, &state)) {
         throw SolverError("registration: the deformation graph system could not be solved");
       }
@@ -785,6 +865,29 @@ DeformationState register_to_surface(const TemplateModel& model, const Deformati
   state.positions = deform_with_graph(model, state);
   refine_vertices(model, target, options, &state.positions);
   return state;
+}
+
+// Both-ways rms distance between the fitted template and the frame.
+double two_sided_rms(const FitStats& s) {
+  return std::sqrt(s.surface_rms * s.surface_rms + s.reverse_rms * s.reverse_rms);
+}
+
+}  // namespace
+
+DeformationState register_to_surface(const TemplateModel& model, const DeformationState& start,
+                                     const SurfaceQuery& target,
+                                     const RegistrationOptions& options) {
+  DeformationState fit = register_pass(model, start, target, options, {});
+  const std::vector<Landmark> landmarks =
+      missed_tip_landmarks(model, fit.positions, target, options);
+  if (landmarks.empty()) return fit;
+  // A tip was missed: register again from the same start, pulled by the tips, and keep the
+  // closer fit.
+  DeformationState retry = register_pass(model, start, target, options, landmarks);
+  const double before = two_sided_rms(evaluate_fit(model, fit.positions, target, options));
+  const double after = two_sided_rms(evaluate_fit(model, retry.positions, target, options));
+  log::debug("tip landmarks: both-ways rms {:.1f} mm -> {:.1f} mm", 1e3 * before, 1e3 * after);
+  return after < before ? retry : fit;
 }
 
 FitStats evaluate_fit(const TemplateModel& model, const std::vector<Vec3f>& positions,

@@ -15,6 +15,10 @@
 //  3. a vertex-level as-rigid-as-possible refinement (Sorkine & Alexa 2007) towards the
 //     surface (matched both ways too), regularised against the template's own shape, so detail never accumulates
 //     errors along the tree.
+// When the fit leaves one of the frame's tips (head, hands, feet: extremities of the geodesic
+// distance from the trunk) uncovered - a limb moved too far for closest points - the
+// registration runs again from the same start with the tips as landmarks (the missed ones
+// matched to free template tips, the covered ones anchoring theirs) and keeps the closer fit.
 // Deformations are always expressed relative to the template at rest, so registering frame
 // after frame along the tree composes nothing but the starting guess.
 #include <Eigen/Core>
@@ -23,6 +27,7 @@
 
 #include "pipeline/core/config.h"
 #include "pipeline/core/mesh.h"
+#include "stages/align/extremities.h"
 #include "stages/align/surface_query.h"
 
 namespace fourd::align {
@@ -42,6 +47,10 @@ struct RegistrationOptions {
   int refine_iterations = 6;     // vertex-level ARAP refinement iterations (0: none)
   double refine_weight = 2.0;    // data weight of the refinement relative to ARAP stiffness
   double coverage_distance = 0.03;  // a frame point farther from the fit is uncovered [m]
+  double landmark_weight = 300;  // weight of one matched tip, in template vertices' data terms
+                                 // (0: no landmarks)
+  int landmark_levels = 5;       // levels that use the landmarks
+  ExtremityOptions extremities;
 
   template <class V>
   void visit(V& v) {
@@ -69,6 +78,13 @@ struct RegistrationOptions {
       Range{1e-6, 1e6});
     v("coverage_distance", coverage_distance,
       "a frame point farther than this from the fit counts as uncovered [m]", Range{1e-4, 10});
+    v("landmark_weight", landmark_weight,
+      "weight of one matched tip (head, hand, foot) as a number of vertices' data terms "
+      "(0: no landmarks)",
+      Range{0, 1e6});
+    v("landmark_levels", landmark_levels, "levels (coarse first) that use the matched tips",
+      Range{0, 100});
+    v("extremities", extremities, "tips of the body (geodesic extremities) used as landmarks");
   }
   void check() const;
 };
@@ -90,6 +106,7 @@ struct TemplateModel {
   std::vector<std::vector<int>> rings;            // one-ring of every vertex
   std::vector<std::vector<double>> ring_weights;  // cotangent weights, aligned with rings
   DeformationGraph graph;
+  Extremities extremities;  // its tips, from the vertex nearest its centroid
 };
 
 TemplateModel build_template_model(const Mesh& template_mesh, const RegistrationOptions& options);

@@ -97,8 +97,9 @@ inline double segment_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& 
 }
 
 // Bones: 0 torso, 1 head, 2/3 left upper arm/forearm, 4/5 right, 6/7/8 left thigh/shin/foot,
-// 9/10/11 right. Scale 1 is a 1.7 m figure.
-inline std::vector<Bone> figure_bones(double scale = 1.0) {
+// 9/10/11 right. Scale 1 is a 1.7 m figure. With the shoulders at +-0.23 m the arms float
+// beside the trunk (the surface has three components); at +-0.17 m they join it.
+inline std::vector<Bone> figure_bones(double scale = 1.0, double shoulder = 0.23) {
   std::vector<Bone> b;
   auto add = [&](int parent, Eigen::Vector3d head, Eigen::Vector3d tail, double r) {
     b.push_back({parent, scale * head, scale * tail, scale * r});
@@ -106,7 +107,7 @@ inline std::vector<Bone> figure_bones(double scale = 1.0) {
   add(-1, {0, 0, 0.95}, {0, 0, 1.40}, 0.13);
   add(0, {0, 0, 1.50}, {0, 0, 1.62}, 0.095);
   for (int side : {1, -1}) {
-    add(0, {0, side * 0.23, 1.40}, {0, side * 0.25, 1.12}, 0.045);
+    add(0, {0, side * shoulder, 1.40}, {0, side * 0.25, 1.12}, 0.045);
     add(static_cast<int>(b.size()) - 1, {0, side * 0.25, 1.12}, {0, side * 0.26, 0.86}, 0.038);
   }
   for (int side : {1, -1}) {
@@ -122,9 +123,9 @@ inline double smooth_min(double a, double b, double k) {
   return b * (1 - h) + a * h - k * h * (1 - h);
 }
 
-inline Figure make_figure(double voxel = 0.012, double scale = 1.0) {
+inline Figure make_figure(double voxel = 0.012, double scale = 1.0, double shoulder = 0.23) {
   Figure f;
-  f.bones = figure_bones(scale);
+  f.bones = figure_bones(scale, shoulder);
   auto sdf = [&](const Eigen::Vector3d& p) {
     double d = 1e9;
     for (const Bone& b : f.bones) d = smooth_min(d, segment_distance(p, b.head, b.tail) - b.radius, 0.02 * scale);

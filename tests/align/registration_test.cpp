@@ -98,5 +98,90 @@ TEST(Registration, SmoothDeformationOfACapsuleIsRecoveredFromFreshConnectivity) 
   EXPECT_EQ(stats.flipped_triangles, 0);
 }
 
+// The figure with its arms joined to the trunk (one surface, as a body's).
+const test::Figure& joined_figure() {
+  static const test::Figure figure = test::make_figure(0.012, 1.0, 0.17);
+  return figure;
+}
+
+TEST(Extremities, TheFiguresTipsAreItsHeadHandsAndFeet) {
+  const test::Figure& figure = joined_figure();
+  const Mesh& mesh = figure.rest;
+  Vec3f centroid = Vec3f::Zero();
+  for (const Vec3f& p : mesh.positions) centroid += p;
+  centroid /= static_cast<float>(mesh.num_vertices());
+  int centre = 0;
+  for (std::size_t i = 0; i < mesh.num_vertices(); ++i) {
+    if ((mesh.positions[i] - centroid).norm() < (mesh.positions[centre] - centroid).norm()) {
+      centre = static_cast<int>(i);
+    }
+  }
+  const Extremities tips = find_extremities(mesh, edge_neighbours(mesh), centre, {});
+  // Top of the head, the two hands' ends, the two toes (the feet point along +x).
+  const std::vector<Vec3f> expected = {{0, 0, 1.717f},      {0, 0.27f, 0.83f},
+                                       {0, -0.27f, 0.83f},  {0.17f, 0.10f, 0.02f},
+                                       {0.17f, -0.10f, 0.02f}};
+  ASSERT_EQ(tips.vertices.size(), expected.size());
+  for (const Vec3f& e : expected) {
+    double nearest = 1e9;
+    for (int v : tips.vertices) nearest = std::min(nearest, static_cast<double>((mesh.positions[v] - e).norm()));
+    EXPECT_LT(nearest, 0.03) << "no tip near " << e.transpose();
+  }
+}
+
+TEST(Extremities, MatchingPairsTipsOfCompatibleGeodesicDistanceClosestFirst) {
+  Extremities templ, frame;
+  templ.vertices = {0, 1, 2};
+  templ.geodesic = {1.0, 1.0, 0.7};   // two hands, a head
+  frame.vertices = {0, 1, 2, 3};
+  frame.geodesic = {1.3, 0.98, 0.72, 0.3};  // a raised hand, a hand, a head, a bump
+  const std::vector<Eigen::Vector3d> at = {{0, 0.3, 0.8}, {0, -0.3, 0.8}, {0, 0, 1.7}};
+  const std::vector<Eigen::Vector3d> to = {{0.5, -0.3, 1.5}, {0, 0.3, 0.8}, {0, 0, 1.7},
+                                           {0, -0.3, 0.8}};
+  ExtremityOptions options;
+  options.tolerance = 0.4;
+  const std::vector<TipMatch> matches = match_extremities(templ, at, frame, to, options);
+  ASSERT_EQ(matches.size(), 3u);
+  // The bump sits where the right hand was, but its geodesic distance is a body's width off.
+  EXPECT_EQ(matches[0].frame_tip, 1);
+  EXPECT_EQ(matches[1].frame_tip, 0);
+  EXPECT_EQ(matches[2].frame_tip, 2);
+}
+
+TEST(Registration, AnArmRaisedFarIsFollowedByItsTip) {
+  // The template hangs its arms; the frame holds the right arm straight forward. Closest points
+  // alone leave the template's arm on the side of the body; the matched hand tips pull it up.
+  const test::Figure& figure = joined_figure();
+  const Mesh templ = remesh_to_vertex_count(figure.rest, 2000);
+  test::Pose pose = test::rest_pose(figure);
+  pose.rotation[4] = test::rot(-90, Eigen::Vector3d::UnitY());
+  const Mesh truth = test::pose_figure(figure, pose);
+  const Mesh frame = test::remesh_fresh(truth, 0.008, {0.0031, 0.0017, 0.0043});
+  const SurfaceQuery target(frame);
+  const test::SurfaceBinding binding = test::bind_to_surface(templ.positions, figure.rest);
+  std::vector<Vec3f> expected;
+  for (std::size_t i = 0; i < templ.num_vertices(); ++i) {
+    expected.push_back(test::bound_point(binding, i, truth));
+  }
+  auto register_with = [&](double landmark_weight) {
+    RegistrationOptions options;
+    options.landmark_weight = landmark_weight;
+    const TemplateModel model = build_template_model(templ, options);
+    const DeformationState fit = register_to_surface(model, rest_state(model), target, options);
+    const FitStats stats = evaluate_fit(model, fit.positions, target, options);
+    const double rms = rms_error(fit.positions, expected);
+    std::cout << "arm raised 90 degrees, landmark weight " << landmark_weight
+              << ": correspondence rms " << rms * 1e3 << " mm, surface rms "
+              << stats.surface_rms * 1e3 << " mm, uncovered " << stats.uncovered_fraction * 100
+              << "%\n";
+    return std::pair{rms, stats};
+  };
+  const auto [without, without_stats] = register_with(0.0);
+  const auto [with, with_stats] = register_with(RegistrationOptions{}.landmark_weight);
+  EXPECT_LT(with, 0.5 * without);
+  EXPECT_LT(with, 0.03);
+  EXPECT_LT(with_stats.uncovered_fraction, 0.01);
+}
+
 }  // namespace
 }  // namespace fourd::align

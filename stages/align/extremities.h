@@ -1,0 +1,69 @@
+#pragma once
+// Extremities of a body surface - the tips of its protrusions: head, hands, feet - and their
+// matching between the template and a frame. Geodesic distance along the surface from a point
+// on the trunk hardly changes when limbs articulate, and its local maxima are the limbs' tips.
+// Matched tips are landmarks that pull a limb which moved too far for closest-point matching
+// (an arm raised from the side to the front between two frames) onto the right surface.
+#include <Eigen/Core>
+#include <vector>
+
+#include "pipeline/core/config.h"
+#include "pipeline/core/mesh.h"
+
+namespace fourd::align {
+
+struct ExtremityOptions {
+  double radius = 0.15;         // a tip is the farthest vertex within this geodesic radius [m]
+  double min_fraction = 0.5;    // ... at least this fraction of the farthest vertex's distance
+  int max_count = 6;            // the farthest tips kept
+  double tolerance = 0.6;       // matched tips' geodesic distances differ by at most this
+                                // fraction of the template's
+  double min_tolerance = 0.08;  // ... or this [m]
+  double max_match_distance = 1.5;  // matched tips farther apart are not matched [m]
+  double anchor_distance = 0.1;     // a covered frame tip anchors the template tip this near [m]
+
+  template <class V>
+  void visit(V& v) {
+    v("radius", radius, "a tip is the farthest vertex within this geodesic radius [m]",
+      Range{1e-3, 10});
+    v("min_fraction", min_fraction,
+      "tips are at least this fraction of the farthest vertex's geodesic distance",
+      Range{0, 1});
+    v("max_count", max_count, "most tips kept (the farthest)", Range{0, 8});
+    v("tolerance", tolerance,
+      "matched tips' geodesic distances differ by at most this fraction of the template's",
+      Range{0, 10});
+    v("min_tolerance", min_tolerance, "... or by this [m]", Range{0, 10});
+    v("max_match_distance", max_match_distance, "matched tips farther apart are not matched [m]",
+      Range{0, 100});
+    v("anchor_distance", anchor_distance,
+      "a frame tip the fit covers anchors the template tip this near it [m]", Range{0, 10});
+  }
+};
+
+struct Extremities {
+  int centre = -1;                // the vertex geodesic distances are measured from
+  std::vector<int> vertices;      // tips, farthest first
+  std::vector<double> geodesic;   // their geodesic distance from the centre [m]
+};
+
+// The tips of `mesh` seen from vertex `centre`. `rings`: neighbours of every vertex.
+Extremities find_extremities(const Mesh& mesh, const std::vector<std::vector<int>>& rings,
+                             int centre, const ExtremityOptions& options);
+
+// A template tip matched to a frame tip.
+struct TipMatch {
+  int template_tip = -1;  // index into the template's Extremities
+  int frame_tip = -1;     // index into the frame's
+};
+
+// Pairs template tips (now at `template_positions`) with frame tips (at `frame_positions`) of
+// compatible geodesic distance, one to one: as many pairs as possible, then the smallest sum of
+// distances between the paired positions.
+std::vector<TipMatch> match_extremities(const Extremities& templ,
+                                        const std::vector<Eigen::Vector3d>& template_positions,
+                                        const Extremities& frame,
+                                        const std::vector<Eigen::Vector3d>& frame_positions,
+                                        const ExtremityOptions& options);
+
+}  // namespace fourd::align
