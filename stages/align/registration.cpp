@@ -881,13 +881,14 @@ DeformationState register_to_surface(const TemplateModel& model, const Deformati
   const std::vector<Landmark> landmarks =
       missed_tip_landmarks(model, fit.positions, target, options);
   if (landmarks.empty()) return fit;
-  // A tip was missed: register again from the same start, pulled by the tips, and keep the
-  // closer fit.
+  // A tip was missed: register again from the same start, pulled by the tips, and keep that
+  // fit when it is clearly closer (a tip matched to the wrong limb, a foot to the other foot,
+  // can still fit a little closer).
   DeformationState retry = register_pass(model, start, target, options, landmarks);
   const double before = two_sided_rms(evaluate_fit(model, fit.positions, target, options));
   const double after = two_sided_rms(evaluate_fit(model, retry.positions, target, options));
   log::debug("tip landmarks: both-ways rms {:.1f} mm -> {:.1f} mm", 1e3 * before, 1e3 * after);
-  return after < before ? retry : fit;
+  return after < options.landmark_gain * before ? retry : fit;
 }
 
 FitStats evaluate_fit(const TemplateModel& model, const std::vector<Vec3f>& positions,

@@ -18,7 +18,8 @@
 // When the fit leaves one of the frame's tips (head, hands, feet: extremities of the geodesic
 // distance from the trunk) uncovered - a limb moved too far for closest points - the
 // registration runs again from the same start with the tips as landmarks (the missed ones
-// matched to free template tips, the covered ones anchoring theirs) and keeps the closer fit.
+// matched to free template tips, the covered ones anchoring theirs) and keeps that fit when it
+// is clearly closer.
 // Deformations are always expressed relative to the template at rest, so registering frame
 // after frame along the tree composes nothing but the starting guess.
 #include <Eigen/Core>
@@ -50,6 +51,8 @@ struct RegistrationOptions {
   double landmark_weight = 300;  // weight of one matched tip, in template vertices' data terms
                                  // (0: no landmarks)
   int landmark_levels = 5;       // levels that use the landmarks
+  double landmark_gain = 0.7;    // the landmarks' fit is kept below this x the first's
+                                 // both-ways rms
   ExtremityOptions extremities;
 
   template <class V>
@@ -84,6 +87,9 @@ struct RegistrationOptions {
       Range{0, 1e6});
     v("landmark_levels", landmark_levels, "levels (coarse first) that use the matched tips",
       Range{0, 100});
+    v("landmark_gain", landmark_gain,
+      "the fit with landmarks is kept when its both-ways rms is below this x the first fit's",
+      Range{0, 1});
     v("extremities", extremities, "tips of the body (geodesic extremities) used as landmarks");
   }
   void check() const;
