@@ -156,7 +156,7 @@ TEST(Registration, AnArmRaisedFarIsFollowedByItsTip) {
   test::Pose pose = test::rest_pose(figure);
   pose.rotation[4] = test::rot(-90, Eigen::Vector3d::UnitY());
   const Mesh truth = test::pose_figure(figure, pose);
-  const Mesh frame = test::remesh_fresh(truth, 0.008, {0.0031, 0.0017, 0.0043});
+  const Mesh frame = test::remesh_fresh(truth, 0.012, {0.0031, 0.0017, 0.0043});
   const SurfaceQuery target(frame);
   const test::SurfaceBinding binding = test::bind_to_surface(templ.positions, figure.rest);
   std::vector<Vec3f> expected;
