@@ -241,13 +241,6 @@ std::string fit_failure(const FitStats& s, const AlignOptions& options) {
   return {};
 }
 
-Mesh fitted_mesh(const TemplateModel& model, const std::vector<Vec3f>& positions) {
-  Mesh m;
-  m.positions = positions;
-  m.triangles = model.rest.triangles;
-  return m;
-}
-
 int find_root(const std::vector<FrameData>& frames, const std::vector<int>& usable,
               const std::string& name) {
   for (std::size_t k = 0; k < usable.size(); ++k) {

@@ -16,6 +16,14 @@
 #include "stages/align/mesh_tools.h"
 
 namespace fourd::align {
+
+Mesh fitted_mesh(const TemplateModel& model, const std::vector<Vec3f>& positions) {
+  Mesh m;
+  m.positions = positions;
+  m.triangles = model.rest.triangles;
+  return m;
+}
+
 namespace {
 
 using Vec3d = Eigen::Vector3d;
@@ -118,10 +126,7 @@ std::vector<ReverseMatch> find_reverse_correspondences(const TemplateModel& mode
                                                        const FrameSamples& samples,
                                                        double max_distance, double robust_scale,
                                                        const RegistrationOptions& options) {
-  Mesh fitted;
-  fitted.positions = positions;
-  fitted.triangles = model.rest.triangles;
-  const SurfaceQuery query(fitted);
+  const SurfaceQuery query(fitted_mesh(model, positions));
   const float min_cos = cos_degrees(options.normal_angle);
   std::vector<ReverseMatch> out(samples.points.size());
   tbb::parallel_for(std::size_t{0}, samples.points.size(), [&](std::size_t i) {
@@ -175,10 +180,7 @@ std::vector<Landmark> missed_tip_landmarks(const TemplateModel& model,
   const int centre = nearest_vertex(frame.positions, positions[tips.centre]);
   const Extremities frame_tips =
       find_extremities(frame, edge_neighbours(frame), centre, options.extremities);
-  Mesh fitted;
-  fitted.positions = positions;
-  fitted.triangles = model.rest.triangles;
-  const SurfaceQuery fitted_query(fitted);
+  const SurfaceQuery fitted_query(fitted_mesh(model, positions));
 
   std::vector<Landmark> landmarks;
   std::vector<char> template_used(tips.vertices.size(), 0);
@@ -912,10 +914,7 @@ FitStats evaluate_fit(const TemplateModel& model, const std::vector<Vec3f>& posi
   }
 
   // Reverse: does the fit cover the whole frame (a limb left behind shows up here only)?
-  Mesh fitted;
-  fitted.positions = positions;
-  fitted.triangles = model.rest.triangles;
-  const SurfaceQuery fitted_query(fitted);
+  const SurfaceQuery fitted_query(fitted_mesh(model, positions));
   const std::vector<Vec3f>& frame_points = target.positions();
   const std::size_t stride = std::max<std::size_t>(1, frame_points.size() / 20000);
   const std::size_t samples = (frame_points.size() + stride - 1) / stride;

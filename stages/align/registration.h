@@ -158,6 +158,9 @@ DeformationState register_to_surface(const TemplateModel& model, const Deformati
                                      const SurfaceQuery& target,
                                      const RegistrationOptions& options);
 
+// The template's triangles over `positions` (a fit as a mesh).
+Mesh fitted_mesh(const TemplateModel& model, const std::vector<Vec3f>& positions);
+
 // Area-weighted vertex normals of positions over the template's triangles.
 std::vector<Vec3f> vertex_normals(const std::vector<Vec3f>& positions,
                                   const std::vector<Tri>& triangles);
