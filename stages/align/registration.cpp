@@ -880,6 +880,11 @@ DeformationState register_to_surface(const TemplateModel& model, const Deformati
                                      const SurfaceQuery& target,
                                      const RegistrationOptions& options) {
   DeformationState fit = register_pass(model, start, target, options, {});
+  if (options.landmark_weight <= 0) return fit;
+  // A fit that covers the whole frame has followed every limb; the tips are looked for only
+  // when part of the frame is left over.
+  const FitStats first = evaluate_fit(model, fit.positions, target, options);
+  if (first.uncovered_fraction <= options.landmark_uncovered) return fit;
   const std::vector<Landmark> landmarks =
       missed_tip_landmarks(model, fit.positions, target, options);
   if (landmarks.empty()) return fit;
@@ -887,7 +892,7 @@ DeformationState register_to_surface(const TemplateModel& model, const Deformati
   // fit when it is clearly closer (a tip matched to the wrong limb, a foot to the other foot,
   // can still fit a little closer).
   DeformationState retry = register_pass(model, start, target, options, landmarks);
-  const double before = two_sided_rms(evaluate_fit(model, fit.positions, target, options));
+  const double before = two_sided_rms(first);
   const double after = two_sided_rms(evaluate_fit(model, retry.positions, target, options));
   log::debug("tip landmarks: both-ways rms {:.1f} mm -> {:.1f} mm", 1e3 * before, 1e3 * after);
   return after < options.landmark_gain * before ? retry : fit;

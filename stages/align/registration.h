@@ -15,7 +15,7 @@
 //  3. a vertex-level as-rigid-as-possible refinement (Sorkine & Alexa 2007) towards the
 //     surface (matched both ways too), regularised against the template's own shape, so detail never accumulates
 //     errors along the tree.
-// When the fit leaves one of the frame's tips (head, hands, feet: extremities of the geodesic
+// When the fit leaves part of the frame uncovered and one of the frame's tips (head, hands, feet: extremities of the geodesic
 // distance from the trunk) uncovered - a limb moved too far for closest points - the
 // registration runs again from the same start with the tips as landmarks (the missed ones
 // matched to free template tips, the covered ones anchoring theirs) and keeps that fit when it
@@ -53,6 +53,8 @@ struct RegistrationOptions {
   int landmark_levels = 5;       // levels that use the landmarks
   double landmark_gain = 0.7;    // the landmarks' fit is kept below this x the first's
                                  // both-ways rms
+  double landmark_uncovered = 0.002;  // tips are looked at only when the first fit leaves more
+                                      // of the frame than this uncovered
   ExtremityOptions extremities;
 
   template <class V>
@@ -89,6 +91,10 @@ struct RegistrationOptions {
       Range{0, 100});
     v("landmark_gain", landmark_gain,
       "the fit with landmarks is kept when its both-ways rms is below this x the first fit's",
+      Range{0, 1});
+    v("landmark_uncovered", landmark_uncovered,
+      "the tips are looked at only when the first fit leaves more than this fraction of the "
+      "frame uncovered (a fit that covers the whole frame missed no limb)",
       Range{0, 1});
     v("extremities", extremities, "tips of the body (geodesic extremities) used as landmarks");
   }
