@@ -13,6 +13,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -152,7 +153,7 @@ namespace {
 // after the other): tree in blue, the sequential baseline in red.
 cv::Mat plot_errors(const AlignmentErrors& tree, const AlignmentErrors* sequential,
                     const std::string& title) {
-  const int width = 900, height = 360, left = 60, right = 20, top = 40, bottom = 50;
+  const int width = 900, height = 372, left = 60, right = 20, top = 40, bottom = 62;
   cv::Mat img(height, width, CV_8UC3, cv::Scalar(255, 255, 255));
   // x positions: frames of every take in order, a gap of 2 between takes.
   std::map<std::pair<std::string, int>, double> x_of;
@@ -190,10 +191,18 @@ cv::Mat plot_errors(const AlignmentErrors& tree, const AlignmentErrors* sequenti
     cv::putText(img, fmt::format("{:.0f}", v), px(0, v) + cv::Point(-45, 4), cv::FONT_HERSHEY_SIMPLEX,
                 0.4, {0, 0, 0}, 1, cv::LINE_AA);
   }
+  // Take names under the axis, on a second row where a short take would run into its
+  // neighbour's.
+  int row_end[2] = {std::numeric_limits<int>::min(), std::numeric_limits<int>::min()};
   for (const auto& [sx, name] : take_starts) {
     cv::line(img, px(sx, 0), px(sx, y_max), {180, 180, 180}, 1);
-    cv::putText(img, name, px(sx, 0) + cv::Point(2, 15), cv::FONT_HERSHEY_SIMPLEX, 0.4, {0, 0, 0},
-                1, cv::LINE_AA);
+    const cv::Point at = px(sx, 0) + cv::Point(2, 0);
+    const int text_width =
+        cv::getTextSize(name, cv::FONT_HERSHEY_SIMPLEX, 0.4, 1, nullptr).width;
+    const int row = at.x > row_end[0] ? 0 : 1;
+    row_end[row] = at.x + text_width + 6;
+    cv::putText(img, name, at + cv::Point(0, 15 + 13 * row), cv::FONT_HERSHEY_SIMPLEX, 0.4,
+                {0, 0, 0}, 1, cv::LINE_AA);
   }
   auto draw = [&](const AlignmentErrors& e, const cv::Scalar& colour) {
     std::string take;
