@@ -173,7 +173,7 @@ std::vector<Landmark> missed_tip_landmarks(const TemplateModel& model,
                                            const SurfaceQuery& target,
                                            const RegistrationOptions& options) {
   const Extremities& tips = model.extremities;
-  if (options.landmark_weight <= 0 || tips.vertices.empty()) return {};
+  if (tips.vertices.empty()) return {};
   Mesh frame;
   frame.positions = target.positions();
   frame.triangles = target.triangles();

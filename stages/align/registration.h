@@ -15,9 +15,9 @@
 //  3. a vertex-level as-rigid-as-possible refinement (Sorkine & Alexa 2007) towards the
 //     surface (matched both ways too), regularised against the template's own shape, so detail never accumulates
 //     errors along the tree.
-// When the fit leaves part of the frame uncovered and one of the frame's tips (head, hands, feet: extremities of the geodesic
-// distance from the trunk) uncovered - a limb moved too far for closest points - the
-// registration runs again from the same start with the tips as landmarks (the missed ones
+// When the fit leaves more than a little of the frame uncovered and misses one of the frame's
+// tips (head, hands, feet: extremities of the geodesic distance from the trunk) - a limb moved
+// too far for closest points - the registration runs again from the same start with the tips as landmarks (the missed ones
 // matched to free template tips, the covered ones anchoring theirs) and keeps that fit when it
 // is clearly closer.
 // Deformations are always expressed relative to the template at rest, so registering frame
