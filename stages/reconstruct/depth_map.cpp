@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numeric>
 #include <opencv2/imgproc.hpp>
+#include <tbb/parallel_for.h>
 
 #include "pipeline/core/error.h"
 
@@ -11,6 +12,9 @@ namespace fourd::reconstruct {
 
 void DepthMapOptions::check() const {
   if (step >= search_depth) throw ConfigError("step must be smaller than search_depth");
+  if (neighbour_score != "mean" && neighbour_score != "best") {
+    throw ConfigError("neighbour_score '" + neighbour_score + "': expected mean or best");
+  }
 }
 
 std::vector<int> select_neighbours(const std::vector<PinholeCamera>& cameras, int ref, int count,
@@ -126,6 +130,7 @@ DepthMap estimate_depth_map(const std::vector<StereoView>& views, int ref,
 
   cv::Mat map_x(size, CV_32F), map_y(size, CV_32F), visible(size, CV_8U);
   cv::Mat warped, mw, s_w, s_ww, s_gw;
+  const bool best_neighbour = options.neighbour_score == "best";
   cv::Mat sum_ncc(size, CV_32F), count(size, CV_32F);
   for (int k = 0; k < hypotheses; ++k) {
     const double offset = -options.front_margin + k * options.step;
@@ -174,8 +179,14 @@ DepthMap estimate_depth_map(const std::vector<StereoView>& views, int ref,
           const float var_w = sww[x] - sw[x] * sw[x] / sm[x];
           const float cov = sgw[x] - sg[x] * sw[x] / sm[x];
           const float denom = std::sqrt(std::max(var_w, 1e-6f) * rv[x]);
-          sn[x] += cov / denom;
-          cn[x] += 1;
+          const float ncc = cov / denom;
+          if (!best_neighbour) {
+            sn[x] += ncc;
+            cn[x] += 1;
+          } else if (cn[x] == 0 || ncc > sn[x]) {
+            sn[x] = ncc;
+            cn[x] = 1;
+          }
         }
       }
     }
@@ -228,6 +239,42 @@ DepthMap estimate_depth_map(const std::vector<StereoView>& views, int ref,
     }
   }
   return out;
+}
+
+std::size_t keep_consistent_depths(const std::vector<PinholeCamera>& cameras,
+                                   std::vector<DepthMap>& maps, int min_views, double tolerance) {
+  const int n = static_cast<int>(maps.size());
+  std::vector<cv::Mat> rejected(n);
+  tbb::parallel_for(0, n, [&](int i) {
+    const cv::Mat& depth = maps[i].depth;
+    rejected[i] = cv::Mat::zeros(depth.size(), CV_8U);
+    for (int y = 0; y < depth.rows; ++y) {
+      const float* d = depth.ptr<float>(y);
+      for (int x = 0; x < depth.cols; ++x) {
+        if (d[x] <= 0) continue;
+        const Eigen::Vector3d p = cameras[i].unproject(x + 0.5, y + 0.5, d[x]);
+        int agree = 0;
+        for (int j = 0; j < n && agree < min_views; ++j) {
+          if (j == i || maps[j].depth.empty()) continue;
+          const Eigen::Vector3d c = cameras[j].to_camera(p);
+          if (c.z() <= 0) continue;
+          const Eigen::Vector2d px = cameras[j].pixel(c);
+          if (!cameras[j].in_image(px)) continue;
+          const float dj =
+              maps[j].depth.at<float>(static_cast<int>(px.y()), static_cast<int>(px.x()));
+          if (dj > 0 && std::abs(dj - c.z()) <= tolerance) ++agree;
+        }
+        if (agree < min_views) rejected[i].at<std::uint8_t>(y, x) = 1;
+      }
+    }
+  });
+  std::size_t removed = 0;
+  for (int i = 0; i < n; ++i) {
+    removed += cv::countNonZero(rejected[i]);
+    maps[i].depth.setTo(0, rejected[i]);
+    maps[i].score.setTo(-1, rejected[i]);
+  }
+  return removed;
 }
 
 cv::Mat depth_map_normals(const PinholeCamera& camera, const cv::Mat& depth, double max_jump) {

@@ -8,10 +8,14 @@
 // Each hypothesis warps the neighbouring cameras' images onto the reference image (cv::remap)
 // and scores every pixel by the normalised cross-correlation (NCC) of its window, computed with
 // box filters over the silhouette only (background pixels are left out of the window, so the
-// outline is matched as well as the inside). Scores of the neighbours that see the point are
-// averaged; the best offset is refined to sub-step precision by a parabola through its
-// neighbours' scores.
+// outline is matched as well as the inside). A pixel's score is the best (or the mean) of the
+// scores of the neighbours that see the point: the best lets a point that one neighbour sees
+// past an occluder the hull does not show still match. The best offset is refined to sub-step
+// precision by a parabola through its neighbours' scores. The maps are then checked against
+// each other (keep_consistent_depths), which removes the lone wrong matches the best score
+// lets through.
 #include <opencv2/core.hpp>
+#include <string>
 #include <vector>
 
 #include "pipeline/core/config.h"
@@ -22,7 +26,7 @@ namespace fourd::reconstruct {
 struct DepthMapOptions {
   int neighbours = 2;                  // cameras matched against each reference camera
   double max_angle_deg = 100;          // ... whose optical axes differ by at most this [deg]
-  int window_radius = 3;               // NCC window is (2 r + 1)^2 pixels
+  int window_radius = 2;               // NCC window is (2 r + 1)^2 pixels
   double front_margin = 0.01;          // depth searched in front of the hull surface [m]
   double search_depth = 0.10;          // depth searched behind the hull surface [m]
   double step = 0.0025;                // depth step of the sweep [m]
@@ -31,6 +35,11 @@ struct DepthMapOptions {
   double min_window_fill = 0.5;        // fraction of the window inside the silhouette
   double occlusion_margin = 0.10;      // a neighbour sees a point at most this far behind its hull [m]
   double prefilter_sigma = 0.0;        // Gaussian blur of the grey images before matching [px]
+  // How the neighbours' NCC scores make a pixel's score: "mean" of the neighbours that see the
+  // point, or the "best" one (a point one neighbour sees past an occluder still matches).
+  std::string neighbour_score = "best";
+  int consistent_views = 1;            // other depth maps that must agree with a depth (0: no check)
+  double consistency_tolerance = 0.01; // ... within this distance along their rays [m]
 
   template <class V>
   void visit(V& v) {
@@ -49,6 +58,12 @@ struct DepthMapOptions {
     v("occlusion_margin", occlusion_margin,
       "how far behind a neighbour's hull surface a point can still be seen [m]", Range{0, 2});
     v("prefilter_sigma", prefilter_sigma, "Gaussian blur before matching [px]", Range{0, 5});
+    v("neighbour_score", neighbour_score,
+      "mean | best: a pixel's score is the mean or the best of its neighbours' NCC");
+    v("consistent_views", consistent_views,
+      "other cameras' depth maps that must agree with a depth (0: keep every depth)", Range{0, 64});
+    v("consistency_tolerance", consistency_tolerance,
+      "largest depth difference that counts as agreeing [m]", Range{0.0001, 0.5});
   }
   void check() const;
 };
@@ -76,6 +91,13 @@ std::vector<int> select_neighbours(const std::vector<PinholeCamera>& cameras, in
 // range get depth 0.
 DepthMap estimate_depth_map(const std::vector<StereoView>& views, int ref,
                             const std::vector<int>& neighbours, const DepthMapOptions& options);
+
+// Geometric consistency: a depth of one map is kept only when at least `min_views` other maps
+// see the same point, i.e. its 3-D point projects into them onto a depth within `tolerance`.
+// A depth no other map confirms is a lone match (a repeated texture, a window across an
+// occluding edge). Returns the number of depths removed.
+std::size_t keep_consistent_depths(const std::vector<PinholeCamera>& cameras,
+                                   std::vector<DepthMap>& maps, int min_views, double tolerance);
 
 // Unit normals (world coordinates, facing the camera) of a depth map by central differences of
 // its back-projected points; 0 where a neighbour has no depth or jumps by more than

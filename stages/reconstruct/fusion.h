@@ -19,7 +19,10 @@ namespace fourd::reconstruct {
 struct FusionOptions {
   double truncation = 0.015;   // TSDF truncation [m]
   double band = 0.12;          // depth inside the hull where depth maps are fused [m]
-  double hull_weight = 1.0;    // weight of the hull's vote relative to one depth map's
+  // Weight of the hull's vote relative to one depth map's. Below 1, so that one or two cameras
+  // that see into a concavity (between the legs, under the arms) can carve the hull there;
+  // the depths have passed the consistency check, so a lone wrong match does not.
+  double hull_weight = 0.3;
   double score_weight = 1.0;   // 1: weight votes by their NCC score above min_ncc; 0: equally
 
   template <class V>

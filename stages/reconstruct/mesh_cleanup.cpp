@@ -7,6 +7,7 @@
 #include <CGAL/Polygon_mesh_processing/remesh.h>
 #include <CGAL/Polygon_mesh_processing/repair.h>
 #include <CGAL/Polygon_mesh_processing/repair_degeneracies.h>
+#include <CGAL/Polygon_mesh_processing/tangential_relaxation.h>
 #include <CGAL/Polygon_mesh_processing/triangulate_hole.h>
 #include <CGAL/Surface_mesh.h>
 #include <fmt/format.h>
@@ -142,8 +143,19 @@ Mesh remesh(const Mesh& mesh, const RemeshOptions& options) {
   // Equilateral triangles of side L cover the area A with 2V faces: A = 2V (sqrt(3)/4) L^2.
   const double area = PMP::area(sm);
   const double edge = std::sqrt(2.0 * area / (std::sqrt(3.0) * target));
-  PMP::isotropic_remeshing(faces(sm), edge, sm,
-                           CGAL::parameters::number_of_iterations(options.iterations));
+  // One remeshing iteration at a time, its tangential relaxation run separately: the
+  // split/collapse/flip pass can leave a vertex whose faces are all degenerate, and the
+  // relaxation inside CGAL 5.5's isotropic_remeshing then looks up the edge of a null
+  // halfedge and crashes. Degenerate faces are removed before each relaxation instead.
+  for (int i = 0; i < options.iterations; ++i) {
+    PMP::isotropic_remeshing(
+        faces(sm), edge, sm,
+        CGAL::parameters::number_of_iterations(1).number_of_relaxation_steps(0));
+    sm.collect_garbage();
+    PMP::remove_degenerate_faces(sm);
+    sm.collect_garbage();
+    PMP::tangential_relaxation(vertices(sm), sm, CGAL::parameters::number_of_iterations(1));
+  }
   sm.collect_garbage();
   return from_surface_mesh(sm);
 }

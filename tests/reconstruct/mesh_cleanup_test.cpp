@@ -5,6 +5,7 @@
 #include <map>
 
 #include "pipeline/core/isosurface.h"
+#include "pipeline/core/mesh_io.h"
 #include "stages/reconstruct/decimate.h"
 #include "stages/reconstruct/mesh_cleanup.h"
 #include "tests/test_shapes.h"
@@ -134,6 +135,16 @@ TEST(MeshCleanup, RemeshSurvivesPinchedAndDegenerateInput) {
       ASSERT_LT(v, static_cast<int>(out.positions.size()));
     }
   }
+}
+
+// A decimated fused surface (one noisy frame) on which CGAL 5.5's isotropic remeshing left a
+// vertex with only degenerate faces and its tangential relaxation crashed. Remeshing it now
+// gives a closed mesh of about the target size.
+TEST(MeshCleanup, RemeshSurvivesAVertexLeftWithOnlyDegenerateFaces) {
+  const Mesh m = read_ply(std::filesystem::path(FOURD_SOURCE_DIR) / "tests/reconstruct/data/remesh_crash.ply");
+  const Mesh out = remesh(m, RemeshOptions{});
+  EXPECT_NEAR(static_cast<double>(out.positions.size()), 5000.0, 1000.0);
+  EXPECT_EQ(boundary_edges(out), 0u);
 }
 
 }  // namespace
