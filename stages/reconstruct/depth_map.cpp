@@ -243,6 +243,7 @@ DepthMap estimate_depth_map(const std::vector<StereoView>& views, int ref,
 
 std::size_t keep_consistent_depths(const std::vector<PinholeCamera>& cameras,
                                    std::vector<DepthMap>& maps, int min_views, double tolerance) {
+  if (min_views <= 0) return 0;
   const int n = static_cast<int>(maps.size());
   std::vector<cv::Mat> rejected(n);
   tbb::parallel_for(0, n, [&](int i) {

@@ -95,7 +95,7 @@ DepthMap estimate_depth_map(const std::vector<StereoView>& views, int ref,
 // Geometric consistency: a depth of one map is kept only when at least `min_views` other maps
 // see the same point, i.e. its 3-D point projects into them onto a depth within `tolerance`.
 // A depth no other map confirms is a lone match (a repeated texture, a window across an
-// occluding edge). Returns the number of depths removed.
+// occluding edge). `min_views` 0 keeps every depth. Returns the number of depths removed.
 std::size_t keep_consistent_depths(const std::vector<PinholeCamera>& cameras,
                                    std::vector<DepthMap>& maps, int min_views, double tolerance);
 

@@ -175,10 +175,8 @@ FrameResult reconstruct_frame(const Rig& rig, const FrameInput& input,
                                                       options.depth.max_angle_deg);
       depth_maps[i] = estimate_depth_map(views, i, neighbours, options.depth);
     });
-    if (options.depth.consistent_views > 0) {
-      keep_consistent_depths(pinholes, depth_maps, options.depth.consistent_views,
-                             options.depth.consistency_tolerance);
-    }
+    keep_consistent_depths(pinholes, depth_maps, options.depth.consistent_views,
+                           options.depth.consistency_tolerance);
     std::size_t hull_pixels = 0, matched = 0;
     for (int i = 0; i < n; ++i) {
       hull_pixels += cv::countNonZero(views[i].hull_depth > 0);

@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "pipeline/core/camera.h"
+#include "stages/validate/sampling.h"
 
 namespace fourd::reconstruct {
 namespace {
@@ -82,11 +83,6 @@ DepthMap exact_depth_map(const PinholeCamera& cam) {
   return m;
 }
 
-double quantile(std::vector<double> v, double q) {
-  std::sort(v.begin(), v.end());
-  return v[static_cast<std::size_t>(q * (v.size() - 1))];
-}
-
 TEST(DepthMap, TexturedSphereIsMatchedToSubPixelPrecision) {
   const std::vector<PinholeCamera> cams = arc_cameras(3);
   std::vector<StereoView> views;
@@ -118,9 +114,9 @@ TEST(DepthMap, TexturedSphereIsMatchedToSubPixelPrecision) {
   // hardly any pixel off it.
   EXPECT_LT(off_sphere, 0.02 * pixel_error.size());
   EXPECT_GT(pixel_error.size(), 0.85 * sphere_pixels);
-  EXPECT_LT(quantile(pixel_error, 0.5), 0.1);
-  EXPECT_LT(quantile(pixel_error, 0.9), 0.4);
-  EXPECT_LT(quantile(depth_error, 0.5), 0.001);
+  EXPECT_LT(validate::percentile(pixel_error, 0.5), 0.1);
+  EXPECT_LT(validate::percentile(pixel_error, 0.9), 0.4);
+  EXPECT_LT(validate::percentile(depth_error, 0.5), 0.001);
 }
 
 TEST(DepthMap, BestNeighbourScoreMatchesWhatOnlyOneNeighbourSees) {
@@ -176,7 +172,7 @@ TEST(DepthMap, ConsistencyCheckRemovesADepthNoOtherMapConfirms) {
   const std::size_t removed = keep_consistent_depths(cams, maps, 1, 0.01);
   EXPECT_GT(removed, 0u);
   EXPECT_EQ(cv::countNonZero(maps[1].depth(wrong) > 0), 0);
-  EXPECT_TRUE(cv::countNonZero(maps[1].score(wrong) >= 0) == 0);
+  EXPECT_EQ(cv::countNonZero(maps[1].score(wrong) >= 0), 0);
   // The right depths around it stay: the whole front of the sphere is seen by a neighbour.
   const cv::Rect front(240, 160, 160, 160);
   cv::Mat kept = maps[1].depth(front) > 0;
