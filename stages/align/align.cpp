@@ -116,6 +116,7 @@ void inspect_frames(std::vector<FrameData>& frames, const AlignOptions& options)
       return;
     }
     const ManifoldReport manifold = check_manifold(mesh);
+    f.status.handles = manifold.handles;
     bool usable = true;
     if (!manifold.manifold()) {
       f.status.flags.push_back("non_manifold");
@@ -329,7 +330,7 @@ json run_sequential(const TemplateModel& model, const ShapeDescriptor& root_desc
 
 constexpr FileMagic kPlanMagic("FOURDAP");
 constexpr FileMagic kBranchMagic("FOURDAB");
-constexpr std::uint32_t kJobFileVersion = 1;
+constexpr std::uint32_t kJobFileVersion = 2;
 
 fs::path jobs_dir(const fs::path& out) { return out / ".jobs"; }
 fs::path plan_file(const fs::path& out) { return jobs_dir(out) / "plan.bin"; }
@@ -443,6 +444,7 @@ void save_plan(const fs::path& file, const Plan& plan, const Registrations& reg)
     w.write<std::uint64_t>(f.status.flags.size());
     for (const std::string& flag : f.status.flags) w.write_string(flag);
     w.write_string(f.status.error);
+    w.write<int>(f.status.handles);
     write_descriptor(w, f.descriptor);
   }
   w.write_vector(plan.usable);
@@ -491,6 +493,7 @@ Plan load_plan(const fs::path& out, const AlignOptions& options, Registrations* 
     f.status.flags.resize(r.read<std::uint64_t>());
     for (std::string& flag : f.status.flags) flag = r.read_string();
     f.status.error = r.read_string();
+    f.status.handles = r.read<int>();
     f.descriptor = read_descriptor(r);
   }
   plan.usable = r.read_vector<int>();
@@ -711,7 +714,14 @@ void run_tree_job(const fs::path& in, const fs::path& out, const StageArgs& args
 
   // 2. The template.
   log::Timer template_timer;
-  const Mesh template_mesh = remesh_to_vertex_count(load_frame(frames[root]), options.template_vertices,
+  Mesh root_mesh = load_frame(frames[root]);
+  if (options.handle_voxel > 0) {
+    const int before = check_manifold(root_mesh).handles;
+    root_mesh = remove_small_handles(root_mesh, options.handle_voxel);
+    const int after = check_manifold(root_mesh).handles;
+    if (after != before) log::info("template: handles of the root frame {} -> {}", before, after);
+  }
+  const Mesh template_mesh = remesh_to_vertex_count(root_mesh, options.template_vertices,
                                                     options.remesh_iterations);
   ensure_directory(out);
   write_ply(out / "template.ply", template_mesh);
@@ -901,7 +911,7 @@ void run_finish_job(const fs::path& out, const StageArgs& args, const AlignOptio
     const FrameStatus& s = f.status;
     json node = {{"take", s.take},     {"frame", s.frame},   {"aligned", s.aligned},
                  {"parent", s.parent}, {"depth", s.depth},   {"distance", s.parent_distance},
-                 {"flags", s.flags}};
+                 {"flags", s.flags}, {"handles", s.handles}};
     if (s.aligned) {
       node["residual_mm"] = 1e3 * s.fit.surface_rms;
       ++aligned_count;

@@ -31,6 +31,7 @@ namespace fourd::align {
 struct AlignOptions {
   int template_vertices = 3000;   // template vertex count (the paper's 3,000)
   int remesh_iterations = 10;     // isotropic remeshing passes for the template
+  double handle_voxel = 0.005;    // voxel of the template's handle removal [m] (0: none)
   std::string root;               // "<take>/<frame>" to force the root; empty: most central
   double max_surface_rms = 0.02;  // a fit with a larger vertex-to-surface rms failed [m]
   double max_uncovered_fraction = 0.05;  // ... or leaving more of the frame uncovered
@@ -49,6 +50,10 @@ struct AlignOptions {
   void visit(V& v) {
     v("template_vertices", template_vertices, "template vertex count", Range{100, 1000000});
     v("remesh_iterations", remesh_iterations, "isotropic remeshing passes", Range{1, 100});
+    v("handle_voxel", handle_voxel,
+      "voxel of the morphological clean-up that removes the root frame's small handles (tunnels, "
+      "an arm merged with the body) before it becomes the template [m]; 0: none",
+      Range{0, 0.1});
     v("root", root, "root frame as <take>/<frame>; empty: the most central frame");
     v("max_surface_rms", max_surface_rms, "largest accepted fit rms [m]", Range{1e-4, 10});
     v("max_uncovered_fraction", max_uncovered_fraction,
@@ -77,6 +82,7 @@ struct FrameStatus {
   // reparented, orphaned (its parent failed).
   std::vector<std::string> flags;
   std::string error;          // why it was excluded (empty when aligned)
+  int handles = -1;           // the mesh's genus (ManifoldReport::handles; -1: unknown)
   int parent = -1;            // index of the frame it was registered from; -1 for the root
   double parent_distance = 0; // shape distance to it
   int depth = 0;              // registrations between the root and this frame

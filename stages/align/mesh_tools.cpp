@@ -9,6 +9,7 @@
 #include <OpenMesh/Tools/Decimater/ModQuadricT.hh>
 
 #include <fmt/format.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
@@ -19,6 +20,7 @@
 #include <unordered_map>
 
 #include "pipeline/core/error.h"
+#include "pipeline/core/isosurface.h"
 #include "stages/align/surface_query.h"
 
 namespace fourd::align {
@@ -221,6 +223,15 @@ ManifoldReport check_manifold(const Mesh& mesh) {
     }
   }
   to_openmesh(mesh, &report.rejected_faces);
+  if (report.manifold() && report.boundary_edges == 0) {
+    // Euler: V - E + F = 2 (components - handles), over the vertices the triangles use.
+    std::vector<char> used(mesh.num_vertices(), 0);
+    for (const Tri& t : mesh.triangles) used[t[0]] = used[t[1]] = used[t[2]] = 1;
+    const long euler = static_cast<long>(std::count(used.begin(), used.end(), 1)) -
+                       static_cast<long>(edge_faces.size()) +
+                       static_cast<long>(mesh.triangles.size());
+    report.handles = static_cast<int>((2L * report.components - euler) / 2);
+  }
   return report;
 }
 
@@ -231,6 +242,17 @@ double surface_area(const Mesh& mesh) {
     area += 0.5 * (mesh.positions[t[1]] - a).cross(mesh.positions[t[2]] - a).norm();
   }
   return area;
+}
+
+double enclosed_volume(const Mesh& mesh) {
+  double six_volume = 0;
+  for (const Tri& t : mesh.triangles) {
+    const Eigen::Vector3d a = mesh.positions[t[0]].cast<double>(),
+                          b = mesh.positions[t[1]].cast<double>(),
+                          c = mesh.positions[t[2]].cast<double>();
+    six_volume += a.dot(b.cross(c));
+  }
+  return six_volume / 6;
 }
 
 Mesh largest_component(const Mesh& mesh) {
@@ -340,6 +362,85 @@ Mesh remesh_to_vertex_count(const Mesh& mesh, int target_vertices, int iteration
                                   out.num_vertices(), target_vertices));
   }
   return out;
+}
+
+Mesh surface_of_solid(const Mesh& mesh, const SolidGrid& solid) {
+  const SurfaceQuery query(mesh);
+  ScalarGrid grid;
+  grid.origin = solid.origin + Eigen::Vector3d::Constant(0.5 * solid.voxel);  // voxel centres
+  grid.voxel = solid.voxel;
+  grid.nx = solid.nx;
+  grid.ny = solid.ny;
+  grid.nz = solid.nz;
+  grid.values.resize(solid.inside.size());
+  const float band = static_cast<float>(2 * solid.voxel);
+  tbb::parallel_for(0, grid.nz, [&](int z) {
+    for (int y = 0; y < grid.ny; ++y) {
+      for (int x = 0; x < grid.nx; ++x) {
+        const SurfaceHit hit = query.closest(grid.point(x, y, z).cast<float>(), band);
+        const float d = hit.found ? hit.distance : band;
+        grid.values[grid.index(x, y, z)] = solid.inside[solid.index(x, y, z)] ? -d : d;
+      }
+    }
+  });
+  return extract_isosurface(grid, 0.0f);
+}
+
+namespace {
+
+// One step of binary dilation (grow) or erosion over the 6-neighbourhood; border voxels
+// keep their value.
+std::vector<std::uint8_t> morphology_step(const SolidGrid& g, const std::vector<std::uint8_t>& in,
+                                          bool grow) {
+  std::vector<std::uint8_t> out = in;
+  tbb::parallel_for(1, g.nz - 1, [&](int z) {
+    for (int y = 1; y < g.ny - 1; ++y) {
+      for (int x = 1; x < g.nx - 1; ++x) {
+        const std::uint8_t a = in[g.index(x - 1, y, z)], b = in[g.index(x + 1, y, z)],
+                           c = in[g.index(x, y - 1, z)], d = in[g.index(x, y + 1, z)],
+                           e = in[g.index(x, y, z - 1)], f = in[g.index(x, y, z + 1)];
+        const std::uint8_t v = in[g.index(x, y, z)];
+        out[g.index(x, y, z)] = grow ? (v | a | b | c | d | e | f) : (v & a & b & c & d & e & f);
+      }
+    }
+  });
+  return out;
+}
+
+std::vector<std::uint8_t> morphology(const SolidGrid& g, std::vector<std::uint8_t> v, bool grow,
+                                     int steps) {
+  for (int i = 0; i < steps; ++i) v = morphology_step(g, v, grow);
+  return v;
+}
+
+}  // namespace
+
+Mesh remove_small_handles(const Mesh& mesh, double voxel, int max_radius, double min_volume) {
+  const int input_handles = check_manifold(mesh).handles;
+  if (input_handles == 0) return mesh;
+  const double input_volume = enclosed_volume(mesh);
+  // Padding beyond the largest radius keeps the grown solid off the grid's border.
+  SolidGrid solid = voxelize_solid(mesh, voxel, max_radius + 2);
+  const std::vector<std::uint8_t> inside = solid.inside;
+  Mesh best = mesh;
+  int best_handles = input_handles < 0 ? std::numeric_limits<int>::max() : input_handles;
+  for (int r = 1; r <= max_radius; ++r) {
+    solid.inside = morphology(solid, morphology(solid, inside, true, r), false, r);  // close
+    solid.inside = morphology(solid, morphology(solid, solid.inside, false, r), true, r);  // open
+    const Mesh surface = surface_of_solid(mesh, solid);
+    Mesh part = largest_component(surface);
+    // Opening must not cut off or erase a limb: no piece of note apart from the body, and
+    // the body's volume kept.
+    const double volume = enclosed_volume(part);
+    if (volume < 0.995 * enclosed_volume(surface) || volume < min_volume * input_volume) continue;
+    const int handles = check_manifold(part).handles;
+    if (handles >= 0 && handles < best_handles) {
+      best = std::move(part);
+      best_handles = handles;
+      if (handles == 0) break;
+    }
+  }
+  return best;
 }
 
 std::vector<std::vector<int>> vertex_neighbours(const Mesh& mesh) {

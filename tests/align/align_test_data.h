@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "pipeline/core/isosurface.h"
+#include "stages/align/mesh_tools.h"
 #include "stages/align/shape_descriptor.h"
 #include "stages/align/surface_query.h"
 
@@ -44,26 +45,7 @@ inline Mesh remesh_fresh(const Mesh& mesh, double voxel, const Eigen::Vector3d& 
                          double noise_sigma = 0, unsigned seed = 1) {
   Mesh shifted = mesh;
   for (Vec3f& p : shifted.positions) p += offset.cast<float>();
-  const align::SolidGrid solid = align::voxelize_solid(shifted, voxel, 2);
-  const align::SurfaceQuery query(shifted);
-  ScalarGrid grid;
-  grid.origin = solid.origin + Eigen::Vector3d::Constant(0.5 * voxel);  // the voxel centres
-  grid.voxel = voxel;
-  grid.nx = solid.nx;
-  grid.ny = solid.ny;
-  grid.nz = solid.nz;
-  grid.values.resize(solid.inside.size());
-  const float band = static_cast<float>(2 * voxel);
-  tbb::parallel_for(0, grid.nz, [&](int z) {
-    for (int y = 0; y < grid.ny; ++y) {
-      for (int x = 0; x < grid.nx; ++x) {
-        const align::SurfaceHit hit = query.closest(grid.point(x, y, z).cast<float>(), band);
-        const float d = hit.found ? hit.distance : band;
-        grid.values[grid.index(x, y, z)] = solid.inside[solid.index(x, y, z)] ? -d : d;
-      }
-    }
-  });
-  Mesh out = extract_isosurface(grid, 0.0f);
+  Mesh out = align::surface_of_solid(shifted, align::voxelize_solid(shifted, voxel, 2));
   for (Vec3f& p : out.positions) p -= offset.cast<float>();
   if (noise_sigma > 0) {
     compute_vertex_normals(out);

@@ -1,0 +1,111 @@
+#include "stages/align/shape_tree.h"
+
+#include <gtest/gtest.h>
+
+#include "stages/align/mesh_tools.h"
+#include "stages/align/shape_descriptor.h"
+#include "stages/align/surface_query.h"
+#include "tests/align/align_test_data.h"
+#include "tests/test_shapes.h"
+
+namespace fourd::align {
+namespace {
+
+TEST(ShapeTree, TwoClearlyDifferentPosesFormTwoBranches) {
+  // Three frames of a walk near one phase and three of the arms raised sideways, given in
+  // alternating order: the tree must join each group within itself and cross between the
+  // groups once.
+  const test::Figure figure = test::make_figure(0.02);
+  std::vector<Mesh> frames;
+  std::vector<int> group;
+  for (int k = 0; k < 3; ++k) {
+    frames.push_back(test::pose_figure(figure, test::walk_pose(figure, 0.1 * k, 0.3 * k)));
+    group.push_back(0);
+    frames.push_back(test::pose_figure(figure, test::arms_raised_pose(figure, 80 + 5 * k)));
+    group.push_back(1);
+  }
+  const DescriptorOptions options;
+  std::vector<ShapeDescriptor> descriptors;
+  for (const Mesh& m : frames) descriptors.push_back(compute_shape_descriptor(m, options));
+  const ShapeTree tree = minimum_spanning_tree(pairwise_shape_distances(descriptors, options).value);
+
+  int crossings = 0;
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    if (tree.parent[k] >= 0 && group[tree.parent[k]] != group[k]) ++crossings;
+  }
+  EXPECT_EQ(crossings, 1);
+}
+
+TEST(ShapeTree, RootIsTheMostCentralFrameUnlessOneIsForced) {
+  // Five frames on a line at 0, 1, 2, 3, 4: the tree is the chain and its median is frame 2.
+  Eigen::MatrixXd distance(5, 5);
+  for (int i = 0; i < 5; ++i) {
+    for (int j = 0; j < 5; ++j) distance(i, j) = std::abs(i - j);
+  }
+  const ShapeTree tree = minimum_spanning_tree(distance);
+  EXPECT_EQ(tree.root, 2);
+  EXPECT_EQ(tree.parent, (std::vector<int>{1, 2, -1, 2, 3}));
+  EXPECT_EQ(tree.depth, (std::vector<int>{2, 1, 0, 1, 2}));
+  const ShapeTree forced = minimum_spanning_tree(distance, 4);
+  EXPECT_EQ(forced.root, 4);
+  EXPECT_EQ(forced.parent, (std::vector<int>{1, 2, 3, 4, -1}));
+  EXPECT_EQ(forced.order, (std::vector<int>{4, 3, 2, 1, 0}));
+}
+
+TEST(MeshTools, HandlesCountTheGenusOfAClosedMesh) {
+  EXPECT_EQ(check_manifold(test::make_icosphere(2)).handles, 0);
+
+  // A torus (one handle), and beside it a sphere: the genus is summed over components.
+  auto torus = [](const Eigen::Vector3d& p) {
+    const double ring = std::hypot(p.x(), p.y()) - 0.3;
+    return std::hypot(ring, p.z()) - 0.1;
+  };
+  Mesh mesh = test::isosurface_of(torus, {-0.5, -0.5, -0.2}, {0.5, 0.5, 0.2}, 0.02);
+  ManifoldReport report = check_manifold(mesh);
+  EXPECT_EQ(report.components, 1);
+  EXPECT_EQ(report.handles, 1);
+  const Mesh sphere = test::make_icosphere(1, 0.1f);
+  const int offset = static_cast<int>(mesh.num_vertices());
+  for (const Vec3f& p : sphere.positions) mesh.positions.push_back(p + Vec3f(2, 0, 0));
+  for (const Tri& t : sphere.triangles) mesh.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
+  report = check_manifold(mesh);
+  EXPECT_EQ(report.components, 2);
+  EXPECT_EQ(report.handles, 1);
+
+  // With a hole the genus is unknown.
+  Mesh open = test::make_icosphere(2);
+  open.triangles.pop_back();
+  EXPECT_EQ(check_manifold(open).handles, -1);
+}
+
+TEST(MeshTools, SmallHandlesAreRemovedAndLargeOnesKept) {
+  // A ball with a thin loop (a tube of 8 mm radius) attached to it at two places: one handle.
+  auto ball_with_loop = [](const Eigen::Vector3d& p) {
+    const double ball = p.norm() - 0.2;
+    const Eigen::Vector3d q = p - Eigen::Vector3d(0.21, 0, 0);
+    const double loop = std::hypot(std::hypot(q.x(), q.z()) - 0.04, q.y()) - 0.008;
+    return std::min(ball, loop);
+  };
+  const Mesh mesh = test::isosurface_of(ball_with_loop, {-0.25, -0.25, -0.25}, {0.3, 0.25, 0.25}, 0.005);
+  ASSERT_EQ(check_manifold(mesh).handles, 1);
+  const Mesh cleaned = remove_small_handles(mesh, 0.005);
+  EXPECT_EQ(check_manifold(cleaned).handles, 0);
+  EXPECT_EQ(check_manifold(cleaned).components, 1);
+  // The ball itself is the input's surface, to within a fraction of the voxel.
+  const SurfaceQuery input(mesh);
+  int far = 0;
+  for (const Vec3f& p : cleaned.positions) far += input.closest(p, 1.0f).distance > 0.002f;
+  EXPECT_LT(far, static_cast<int>(cleaned.num_vertices() / 50));
+
+  // A torus's hole is far wider than the clean-up: the torus is returned as it is.
+  auto torus = [](const Eigen::Vector3d& p) {
+    return std::hypot(std::hypot(p.x(), p.y()) - 0.3, p.z()) - 0.1;
+  };
+  const Mesh ring = test::isosurface_of(torus, {-0.5, -0.5, -0.2}, {0.5, 0.5, 0.2}, 0.02);
+  const Mesh kept = remove_small_handles(ring, 0.005);
+  EXPECT_EQ(kept.positions, ring.positions);
+  EXPECT_EQ(check_manifold(kept).handles, 1);
+}
+
+}  // namespace
+}  // namespace fourd::align
