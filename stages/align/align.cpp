@@ -214,6 +214,8 @@ Fit register_frame(const TemplateModel& model, const DeformationState& parent_st
                     target, reg.rigid_iterations, reg.max_distance, reg);
       apply_rigid(model, refine, &candidate);
       const double score = truncated_rms(candidate.positions, target, static_cast<float>(reg.max_distance));
+      log::debug("{}: heading guess {} sectors, rigid fit rms {:.1f} mm", frame_label(child.status), s,
+                 1e3 * score);
       if (score < best_score) {
         best_score = score;
         start = std::move(candidate);
