@@ -718,7 +718,7 @@ void run_tree_job(const fs::path& in, const fs::path& out, const StageArgs& args
   log::Timer template_timer;
   Mesh root_mesh = load_frame(frames[root]);
   if (options.handle_voxel > 0) {
-    const int before = check_manifold(root_mesh).handles;
+    const int before = frames[root].status.handles;  // counted by inspect_frames
     root_mesh = remove_small_handles(root_mesh, options.handle_voxel);
     const int after = check_manifold(root_mesh).handles;
     if (after != before) log::info("template: handles of the root frame {} -> {}", before, after);

@@ -51,8 +51,9 @@ Mesh surface_of_solid(const Mesh& mesh, const SolidGrid& solid);
 // reconstruction, or an arm merged with the body where it touched it. Its solid, voxelised at
 // `voxel`, is closed then opened by r voxels for r = 1, 2, ... max_radius, and the first result
 // whose largest component has no handle, holds all but 0.5 % of the result's volume (opening
-// cut nothing off) and keeps at least `min_volume` of the input's volume is returned (its largest component); failing that, the one of the fewest handles, or the input
-// itself when no result has fewer handles than it.
+// cut nothing off) and keeps at least `min_volume` of the input's volume is returned (its
+// largest component); failing that, the one of the fewest handles, or the input itself when
+// no result has fewer handles than it.
 Mesh remove_small_handles(const Mesh& mesh, double voxel, int max_radius = 3,
                           double min_volume = 0.98);
 
