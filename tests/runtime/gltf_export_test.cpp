@@ -14,19 +14,12 @@
 #include "pipeline/gltf/gltf.h"
 #include "runtime/root_math.h"
 #include "tests/graph/test_graph.h"
+#include "tests/scratch_dir.h"
 
 namespace fourd {
 namespace {
 
 namespace fs = std::filesystem;
-
-fs::path temp_dir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() /
-                     ("fourd_gltf_export_test_" + name + "_" + std::to_string(::getpid()));
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d;
-}
 
 const Asset& test_asset() {
   static const Asset asset = [] {
@@ -74,7 +67,7 @@ std::vector<float> channel_output(const tinygltf::Model& model, const tinygltf::
 
 TEST(GltfExport, EveryTakeIsAClipOfMorphTargetsWithTheRootOnTheNode) {
   const Asset& asset = test_asset();
-  const fs::path file = temp_dir("takes") / "character.glb";
+  const fs::path file = test::scratch_dir("takes") / "character.glb";
   write_mesh_animation_glb(file, takes_of(asset));
   const tinygltf::Model model = gltf::read_gltf(file);
 
@@ -158,7 +151,7 @@ TEST(GltfExport, WritesUVsSplitAtSeamsAndTheTextureWhenTheTemplateHasThem) {
   }
   cv::Mat image(8, 16, CV_8UC3, cv::Scalar(20, 120, 220));
   ASSERT_TRUE(cv::imencode(".png", image, animation.texture_png));
-  const fs::path file = temp_dir("uv") / "textured.glb";
+  const fs::path file = test::scratch_dir("uv") / "textured.glb";
   write_mesh_animation_glb(file, animation);
   const tinygltf::Model model = gltf::read_gltf(file);
   const tinygltf::Primitive& primitive = model.meshes.at(0).primitives.at(0);
@@ -194,7 +187,7 @@ TEST(GltfExport, BakesAControlScriptAsOneMoreClip) {
   MeshAnimation animation = takes_of(asset);
   const std::size_t takes = animation.clips.size();
   animation.clips.push_back(clip);
-  const fs::path file = temp_dir("script") / "script.glb";
+  const fs::path file = test::scratch_dir("script") / "script.glb";
   write_mesh_animation_glb(file, animation);
   const tinygltf::Model model = gltf::read_gltf(file);
   ASSERT_EQ(model.animations.size(), takes + 1);
@@ -206,7 +199,7 @@ TEST(GltfExport, BakesAControlScriptAsOneMoreClip) {
 
 TEST(GltfExport, RefusesInconsistentClipsAndUnwritablePaths) {
   const Asset& asset = test_asset();
-  const fs::path d = temp_dir("bad");
+  const fs::path d = test::scratch_dir("bad");
   auto error_of = [&](const MeshAnimation& a, const fs::path& file) -> std::string {
     try {
       write_mesh_animation_glb(file, a);
@@ -230,7 +223,7 @@ TEST(GltfExport, RefusesInconsistentClipsAndUnwritablePaths) {
 
 int run_export(const std::string& args, std::string* output) {
   const fs::path bin = fs::path(FOURD_BIN_DIR) / "fourd-export";
-  const fs::path log = temp_dir("cli") / "out.txt";
+  const fs::path log = test::scratch_dir("cli") / "out.txt";
   const int status =
       std::system((bin.string() + " " + args + " >" + log.string() + " 2>&1").c_str());
   *output = read_file(log);
@@ -239,7 +232,7 @@ int run_export(const std::string& args, std::string* output) {
 
 TEST(ExportExecutable, RefusesBadInputWithAClearMessage) {
   if (!fs::exists(fs::path(FOURD_BIN_DIR) / "fourd-export")) GTEST_SKIP() << "not built";
-  const fs::path d = temp_dir("cli_inputs");
+  const fs::path d = test::scratch_dir("cli_inputs");
   save_asset(d / "motion_graph.fourd", test_asset());
   std::string out;
   EXPECT_EQ(run_export((d / "motion_graph.fourd").string() + " -o " + (d / "ok.glb").string(), &out),

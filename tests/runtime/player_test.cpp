@@ -15,23 +15,16 @@
 #include "pipeline/core/error.h"
 #include "pipeline/core/files.h"
 #include "tests/graph/test_graph.h"
+#include "tests/scratch_dir.h"
 
 namespace fourd {
 namespace {
 
 namespace fs = std::filesystem;
 
-fs::path temp_dir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / ("fourd_player_test_" + name + "_" +
-                                                   std::to_string(::getpid()));
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d;
-}
-
 const fs::path& test_asset() {
   static const fs::path file = [] {
-    const fs::path d = temp_dir("asset");
+    const fs::path d = test::scratch_dir("asset");
     Asset a;
     a.graph = test::make_test_graph(true);
     save_asset(d / "motion_graph.fourd", a);
@@ -121,7 +114,7 @@ TEST(Player, WritesMeshesAndLogs) {
       "at 2.5 motion turning 10\n",
       "timeline.txt");
   PlayerOptions o;
-  o.out_dir = temp_dir("out");
+  o.out_dir = test::scratch_dir("out");
   o.mesh_every = 10;
   const PlayerReport r = run_player(asset, script, o);
   EXPECT_EQ(r.frames, 61);
@@ -157,7 +150,7 @@ TEST(Player, SameScriptAt30And60HzGivesTheSameStates) {
       "at 2.9 turn 15\n";
   auto rows = [&](double fps, const std::string& name) {
     PlayerOptions o;
-    o.out_dir = temp_dir(name);
+    o.out_dir = test::scratch_dir(name);
     o.fps = fps;
     o.write_meshes = false;
     run_player(asset, parse_control_script(text, "t.txt"), o);
@@ -183,7 +176,7 @@ TEST(Player, SameScriptAt30And60HzGivesTheSameStates) {
 
 int run_play(const std::string& args, std::string* output) {
   const fs::path bin = fs::path(FOURD_BIN_DIR) / "fourd-play";
-  const fs::path log = temp_dir("cli") / "out.txt";
+  const fs::path log = test::scratch_dir("cli") / "out.txt";
   const int status = std::system((bin.string() + " " + args + " >" + log.string() + " 2>&1").c_str());
   *output = read_file(log);
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
@@ -192,7 +185,7 @@ int run_play(const std::string& args, std::string* output) {
 TEST(PlayerExecutable, RefusesBadInputWithAClearMessage) {
   const fs::path bin = fs::path(FOURD_BIN_DIR) / "fourd-play";
   if (!fs::exists(bin)) GTEST_SKIP() << "fourd-play not built";
-  const fs::path d = temp_dir("bad");
+  const fs::path d = test::scratch_dir("bad");
   write_file_atomic(d / "good.txt", "duration 0.2\nstart locomotion 1.2\n");
   write_file_atomic(d / "bad.txt", "start locomotion 1.2\nat 0.1 motion jump_length\n");
   std::string out;
