@@ -144,10 +144,6 @@ std::vector<ReverseMatch> find_reverse_correspondences(const TemplateModel& mode
 
 // ---- Landmarks: the template's tips matched to the frame's -------------------------------
 
-struct Landmark {
-  int vertex = -1;               // template vertex (a tip)
-  Vec3d point = Vec3d::Zero();   // the frame's matched tip
-};
 
 int nearest_vertex(const std::vector<Vec3f>& positions, const Vec3f& p) {
   int best = -1;
@@ -168,10 +164,13 @@ int nearest_vertex(const std::vector<Vec3f>& positions, const Vec3f& p) {
 // template's centre in the fit; a covered frame tip with a template tip within anchor_distance
 // anchors it, the missed ones are matched to the remaining template tips. Empty when no tip is
 // missed or none of them matches.
-std::vector<Landmark> missed_tip_landmarks(const TemplateModel& model,
-                                           const std::vector<Vec3f>& positions,
-                                           const SurfaceQuery& target,
-                                           const RegistrationOptions& options) {
+struct TipLandmarks {
+  std::vector<Landmark> landmarks;  // the anchors and the missed tips matched
+  bool missed = false;              // a frame tip was missed and matched
+};
+
+TipLandmarks tip_landmarks(const TemplateModel& model, const std::vector<Vec3f>& positions,
+                           const SurfaceQuery& target, const RegistrationOptions& options) {
   const Extremities& tips = model.extremities;
   if (tips.vertices.empty()) return {};
   Mesh frame;
@@ -208,7 +207,7 @@ std::vector<Landmark> missed_tip_landmarks(const TemplateModel& model,
       missed_at.push_back(p.cast<double>());
     }
   }
-  if (missed.vertices.empty()) return {};
+  if (missed.vertices.empty()) return {landmarks, false};
   Extremities free;
   std::vector<Vec3d> free_at;
   for (std::size_t i = 0; i < tips.vertices.size(); ++i) {
@@ -224,9 +223,9 @@ std::vector<Landmark> missed_tip_landmarks(const TemplateModel& model,
   }
   log::debug("tips: {} in the frame, {} missed by the fit, {} of them matched; {} landmarks",
              frame_tips.vertices.size(), missed.vertices.size(), matches.size(), landmarks.size());
-  if (matches.empty()) return {};
-  return landmarks;
+  return {landmarks, !matches.empty()};
 }
+
 
 // ---- The deformation graph ---------------------------------------------------------------
 
@@ -876,6 +875,55 @@ double two_sided_rms(const FitStats& s) {
 
 }  // namespace
 
+DeformationState turn_limbs_to_tips(const TemplateModel& model, const DeformationState& start,
+                                    const std::vector<Landmark>& landmarks, double limb_fraction,
+                                    double blend) {
+  const Extremities& tips = model.extremities;
+  const std::vector<Vec3f> at = deform_with_graph(model, start);
+  const int nv = model.rest.num_vertices();
+  DeformationState out = start;
+  for (const Landmark& l : landmarks) {
+    const auto tip = std::find(tips.vertices.begin(), tips.vertices.end(), l.vertex);
+    if (tip == tips.vertices.end()) continue;
+    const double length = limb_fraction * tips.geodesic[tip - tips.vertices.begin()];
+    std::vector<double> dist(nv, std::numeric_limits<double>::infinity());
+    std::vector<int> owner(nv, -1);
+    const std::vector<int> limb =
+        geodesic_update(model.rest, model.rings, l.vertex, 0, length, dist, owner);
+    Vec3d joint = Vec3d::Zero();
+    int border = 0;
+    for (int v : limb) {
+      for (int w : model.rings[v]) {
+        if (dist[w] > length) {
+          joint += at[v].cast<double>();
+          ++border;
+          break;
+        }
+      }
+    }
+    if (border == 0) continue;  // the whole template: not a limb
+    joint /= border;
+    const Vec3d from = at[l.vertex].cast<double>() - joint, to = l.point - joint;
+    if (from.norm() < 1e-6 || to.norm() < 1e-6) continue;
+    const Eigen::Quaterniond turn = Eigen::Quaterniond::FromTwoVectors(from, to);
+    log::debug("limb of tip {}: {} vertices, joint {} border vertices, turned {:.0f} deg", l.vertex,
+               limb.size(), border, 2 * std::acos(std::min(1.0, std::abs(turn.w()))) * 180 / M_PI);
+    const DeformationGraph& graph = model.graph;
+    for (std::size_t k = 0; k < graph.node_vertex.size(); ++k) {
+      const double d = dist[graph.node_vertex[k]];
+      if (!(d <= length)) continue;
+      const double w = blend > 0 ? std::clamp((length - d) / blend, 0.0, 1.0) : 1.0;
+      const Mat3d r = Eigen::Quaterniond::Identity().slerp(w, turn).toRotationMatrix();
+      // x -> r (y - joint) + joint after the node's own motion y = R (x - g) + g + t.
+      const Vec3d& g = graph.node_position[k];
+      out.rotation[k] = r * out.rotation[k];
+      out.translation[k] = r * (g + out.translation[k] - joint) + joint - g;
+    }
+  }
+  out.positions = deform_with_graph(model, out);
+  return out;
+}
+
 DeformationState register_to_surface(const TemplateModel& model, const DeformationState& start,
                                      const SurfaceQuery& target,
                                      const RegistrationOptions& options) {
@@ -885,17 +933,49 @@ DeformationState register_to_surface(const TemplateModel& model, const Deformati
   // when part of the frame is left over.
   const FitStats first = evaluate_fit(model, fit.positions, target, options);
   if (first.uncovered_fraction <= options.landmark_uncovered) return fit;
-  const std::vector<Landmark> landmarks =
-      missed_tip_landmarks(model, fit.positions, target, options);
-  if (landmarks.empty()) return fit;
-  // A tip was missed: register again from the same start, pulled by the tips, and keep that
-  // fit when it is clearly closer (a tip matched to the wrong limb, a foot to the other foot,
-  // can still fit a little closer).
-  DeformationState retry = register_pass(model, start, target, options, landmarks);
-  const double before = two_sided_rms(first);
-  const double after = two_sided_rms(evaluate_fit(model, retry.positions, target, options));
-  log::debug("tip landmarks: both-ways rms {:.1f} mm -> {:.1f} mm", 1e3 * before, 1e3 * after);
-  return after < options.landmark_gain * before ? retry : fit;
+  const TipLandmarks tips = tip_landmarks(model, fit.positions, target, options);
+  if (tips.landmarks.empty()) return fit;
+  struct Candidate {
+    DeformationState state;
+    FitStats stats;
+  };
+  std::vector<Candidate> candidates;
+  candidates.push_back({std::move(fit), first});
+  auto attempt = [&](const DeformationState& from, const char* what) {
+    DeformationState retry = register_pass(model, from, target, options, tips.landmarks);
+    const FitStats stats = evaluate_fit(model, retry.positions, target, options);
+    log::debug("{}: both-ways rms {:.1f} mm -> {:.1f} mm, stretch {:.3f} -> {:.3f}", what,
+               1e3 * two_sided_rms(first), 1e3 * two_sided_rms(stats), first.stretch_rms,
+               stats.stretch_rms);
+    candidates.push_back({std::move(retry), stats});
+  };
+  // A tip was missed: register again from the same start, pulled by the tips.
+  if (tips.missed) attempt(start, "tip landmarks");
+  // The limbs turned about their joints towards the tips first (the tips may all be covered
+  // by a limb bent at the wrong joint).
+  if (options.limb_fraction > 0) {
+    attempt(turn_limbs_to_tips(model, start, tips.landmarks, options.limb_fraction,
+                               options.limb_blend),
+            "limbs turned to the tips");
+  }
+  // A retry must fit clearly closer than the first fit (a tip matched to the wrong limb, a
+  // foot to the other foot, can still fit a little closer). Among the fits that are about as
+  // close as the closest, the least stretched wins: a limb bent at the wrong joint can cover
+  // the frame too, but only by stretching the template.
+  double closest = two_sided_rms(first);
+  for (std::size_t i = 1; i < candidates.size(); ++i) {
+    closest = std::min(closest, two_sided_rms(candidates[i].stats));
+  }
+  std::size_t chosen = 0;
+  for (std::size_t i = 1; i < candidates.size(); ++i) {
+    const double rms = two_sided_rms(candidates[i].stats);
+    if (rms >= options.landmark_gain * two_sided_rms(first)) continue;
+    if (rms > options.stretch_tolerance * closest) continue;
+    if (chosen == 0 || candidates[i].stats.stretch_rms < candidates[chosen].stats.stretch_rms) {
+      chosen = i;
+    }
+  }
+  return std::move(candidates[chosen].state);
 }
 
 FitStats evaluate_fit(const TemplateModel& model, const std::vector<Vec3f>& positions,
@@ -938,6 +1018,21 @@ FitStats evaluate_fit(const TemplateModel& model, const std::vector<Vec3f>& posi
     stats.reverse_rms = std::sqrt(reverse_sum / samples);
     stats.uncovered_fraction = static_cast<double>(uncovered) / samples;
   }
+
+  // Stretch: how far the fit is from an isometry of the template (edge lengths).
+  double stretch_sum = 0;
+  std::size_t edges = 0;
+  for (std::size_t v = 0; v < nv; ++v) {
+    for (int w : model.rings[v]) {
+      if (static_cast<std::size_t>(w) <= v) continue;
+      const double rest = (model.rest.positions[v] - model.rest.positions[w]).norm();
+      if (rest <= 0) continue;
+      const double change = (positions[v] - positions[w]).norm() / rest - 1;
+      stretch_sum += change * change;
+      ++edges;
+    }
+  }
+  stats.stretch_rms = edges ? std::sqrt(stretch_sum / edges) : 0.0;
 
   // Fold-overs: a triangle whose normal opposes its rest normal carried by the local rotations.
   const std::vector<Mat3d> rotations = local_rotations(model, positions);

@@ -15,11 +15,14 @@
 //  3. a vertex-level as-rigid-as-possible refinement (Sorkine & Alexa 2007) towards the
 //     surface (matched both ways too), regularised against the template's own shape, so detail never accumulates
 //     errors along the tree.
-// When the fit leaves more than a little of the frame uncovered and misses one of the frame's
-// tips (head, hands, feet: extremities of the geodesic distance from the trunk) - a limb moved
-// too far for closest points - the registration runs again from the same start with the tips as landmarks (the missed ones
-// matched to free template tips, the covered ones anchoring theirs) and keeps that fit when it
-// is clearly closer.
+// When the fit leaves more than a little of the frame uncovered - a limb moved too far for
+// closest points - the frame's tips (head, hands, feet: extremities of the geodesic distance
+// from the trunk) become landmarks (the missed ones matched to free template tips, the covered
+// ones anchoring theirs) and the registration runs again: from the same start when a tip was
+// missed, and from the start with every landmark's limb first turned as a whole about its joint
+// towards its tip (turn_limbs_to_tips). A retry is kept when it fits clearly closer than the
+// first fit; of the retries about as close as the closest, the least stretched wins (a limb
+// bent at the wrong joint can cover the frame too, but only by stretching the template).
 // Deformations are always expressed relative to the template at rest, so registering frame
 // after frame along the tree composes nothing but the starting guess.
 #include <Eigen/Core>
@@ -51,10 +54,15 @@ struct RegistrationOptions {
   double landmark_weight = 300;  // weight of one matched tip, in template vertices' data terms
                                  // (0: no landmarks)
   int landmark_levels = 5;       // levels that use the landmarks
-  double landmark_gain = 0.7;    // the landmarks' fit is kept below this x the first's
-                                 // both-ways rms
+  double landmark_gain = 0.7;    // a retry with landmarks is kept only below this x the
+                                 // first fit's both-ways rms
   double landmark_uncovered = 0.002;  // tips are looked at only when the first fit leaves more
                                       // of the frame than this uncovered
+  double limb_fraction = 0.6;    // a limb: the part geodesically nearer its tip than this x
+                                 // the tip's distance from the trunk (0: no articulated retry)
+  double limb_blend = 0.05;      // a turned limb's rotation fades in over this [m]
+  double stretch_tolerance = 1.5;  // retries within this x the closest fit's both-ways rms:
+                                   // the least stretched is kept
   ExtremityOptions extremities;
 
   template <class V>
@@ -90,12 +98,24 @@ struct RegistrationOptions {
     v("landmark_levels", landmark_levels, "levels (coarse first) that use the matched tips",
       Range{0, 100});
     v("landmark_gain", landmark_gain,
-      "the fit with landmarks is kept when its both-ways rms is below this x the first fit's",
+      "a retry with the tips as landmarks is kept only when its both-ways rms is below this x "
+      "the first fit's",
       Range{0, 1});
     v("landmark_uncovered", landmark_uncovered,
       "the tips are looked at only when the first fit leaves more than this fraction of the "
       "frame uncovered (a fit that covers the whole frame missed no limb)",
       Range{0, 1});
+    v("limb_fraction", limb_fraction,
+      "when a fit leaves part of the frame uncovered, the limbs (the template's surface "
+      "geodesically nearer a tip than this x the tip's distance from the trunk) are turned about "
+      "their joints towards the frame's tips and the frame registered again (0: no such retry)",
+      Range{0, 1});
+    v("limb_blend", limb_blend, "a turned limb's rotation fades in over this geodesic distance [m]",
+      Range{0, 10});
+    v("stretch_tolerance", stretch_tolerance,
+      "of the retries that fit within this x the closest one's both-ways rms, the least "
+      "stretched is kept",
+      Range{1, 100});
     v("extremities", extremities, "tips of the body (geodesic extremities) used as landmarks");
   }
   void check() const;
@@ -147,6 +167,7 @@ struct FitStats {
   double reverse_rms = 0;        // frame vertices to the fitted surface [m]
   double uncovered_fraction = 0; // frame vertices farther than coverage_distance from the fit
   int flipped_triangles = 0;     // triangles turned over relative to their local rotation
+  double stretch_rms = 0;        // rms relative change of the template's edge lengths
 };
 
 FitStats evaluate_fit(const TemplateModel& model, const std::vector<Vec3f>& positions,
@@ -157,6 +178,24 @@ FitStats evaluate_fit(const TemplateModel& model, const std::vector<Vec3f>& posi
 Eigen::Isometry3d rigid_icp(const std::vector<Vec3f>& points, const std::vector<Vec3f>& normals,
                             const SurfaceQuery& target, int iterations, double max_distance,
                             const RegistrationOptions& options);
+
+// A template tip held at a frame point.
+struct Landmark {
+  int vertex = -1;                                   // template vertex (a tip)
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();   // the frame's matched tip
+};
+
+// The start of the articulated retry: every limb whose tip is a landmark is turned as a whole
+// about its joint so that the tip points at the landmark's point. A limb is the template's
+// surface geodesically nearer its tip than `limb_fraction` x the tip's distance from the
+// trunk's centre (model.extremities); its joint is the mean of its border, where it is cut
+// off; the turn fades in over `blend` [m] of geodesic distance from the border. Closest points
+// and the graph's regulariser then bend the limb where it has a joint, instead of where the
+// surface first lets them (an arm raised far between two frames stays down at the shoulder and
+// bends at the elbow).
+DeformationState turn_limbs_to_tips(const TemplateModel& model, const DeformationState& start,
+                                    const std::vector<Landmark>& landmarks, double limb_fraction,
+                                    double blend);
 
 // Registers the template, starting from `start` (e.g. the parent frame's deformation moved by
 // a rigid guess), to the target surface.

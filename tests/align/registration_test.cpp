@@ -183,5 +183,46 @@ TEST(Registration, AnArmRaisedFarIsFollowedByItsTip) {
   EXPECT_LT(with_stats.uncovered_fraction, 0.01);
 }
 
+TEST(Registration, ALimbIsTurnedAsAWholeTowardsItsTip) {
+  // The template hangs its arms; the right hand's tip is held where the arm raised forward
+  // about the shoulder would put it. Turning the limb moves the hand most of the way there
+  // (the limb's joint is not the shoulder itself), keeps the arm's shape (a rotation, stretched
+  // only where the turn fades in, here over 25 cm) and leaves the other limbs where they were.
+  const test::Figure& figure = joined_figure();
+  const Mesh templ = remesh_to_vertex_count(figure.rest, 2000);
+  RegistrationOptions options;
+  const TemplateModel model = build_template_model(templ, options);
+  const Extremities& tips = model.extremities;
+  ASSERT_EQ(tips.vertices.size(), 5u);
+  int hand = -1;  // the right hand: y < 0, half-way up
+  for (int v : tips.vertices) {
+    const Vec3f& p = templ.positions[v];
+    if (p.y() < -0.2f && p.z() > 0.6f && p.z() < 1.0f) hand = v;
+  }
+  ASSERT_GE(hand, 0);
+  const Eigen::Vector3d shoulder = figure.bones[4].head;
+  const Eigen::Vector3d target =
+      test::rot(-90, Eigen::Vector3d::UnitY()) * (templ.positions[hand].cast<double>() - shoulder) +
+      shoulder;
+  const DeformationState rest = rest_state(model);
+  const DeformationState turned =
+      turn_limbs_to_tips(model, rest, {{hand, target}}, options.limb_fraction, 0.25);
+
+  const double before = (templ.positions[hand].cast<double>() - target).norm();
+  const double after = (turned.positions[hand].cast<double>() - target).norm();
+  EXPECT_GT(before, 0.7);
+  EXPECT_LT(after, 0.25 * before);
+  for (int v : tips.vertices) {
+    if (v == hand) continue;
+    EXPECT_LT((turned.positions[v] - templ.positions[v]).norm(), 0.01) << "tip " << v << " moved";
+  }
+  const SurfaceQuery target_surface(templ);
+  const FitStats stats = evaluate_fit(model, turned.positions, target_surface, options);
+  std::cout << "hand " << before * 1e3 << " -> " << after * 1e3 << " mm from its target, stretch "
+            << stats.stretch_rms << ", flipped " << stats.flipped_triangles << "\n";
+  EXPECT_LT(stats.stretch_rms, 0.07);
+  EXPECT_EQ(stats.flipped_triangles, 0);
+}
+
 }  // namespace
 }  // namespace fourd::align
