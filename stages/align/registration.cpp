@@ -158,12 +158,11 @@ int nearest_vertex(const std::vector<Vec3f>& positions, const Vec3f& p) {
   return best;
 }
 
-// Landmarks for the frame's tips the fit missed: left uncovered, or covered without a template
+// The frame's tips as landmarks for a fit. The tips are seen from the frame vertex nearest the
+// template's centre in the fit. A covered frame tip with a template tip within anchor_distance
+// anchors it; the others were missed by the fit - left uncovered, or covered without a template
 // tip near (a limb that moved too far for closest points is left behind, or covered by
-// stretched neighbouring surface). The frame's tips are seen from the frame vertex nearest the
-// template's centre in the fit; a covered frame tip with a template tip within anchor_distance
-// anchors it, the missed ones are matched to the remaining template tips. Empty when no tip is
-// missed or none of them matches.
+// stretched neighbouring surface) - and are matched to the remaining template tips.
 struct TipLandmarks {
   std::vector<Landmark> landmarks;  // the anchors and the missed tips matched
   bool missed = false;              // a frame tip was missed and matched
@@ -225,7 +224,6 @@ TipLandmarks tip_landmarks(const TemplateModel& model, const std::vector<Vec3f>&
              frame_tips.vertices.size(), missed.vertices.size(), matches.size(), landmarks.size());
   return {landmarks, !matches.empty()};
 }
-
 
 // ---- The deformation graph ---------------------------------------------------------------
 
