@@ -144,7 +144,6 @@ std::vector<ReverseMatch> find_reverse_correspondences(const TemplateModel& mode
 
 // ---- Landmarks: the template's tips matched to the frame's -------------------------------
 
-
 int nearest_vertex(const std::vector<Vec3f>& positions, const Vec3f& p) {
   int best = -1;
   float best_d = std::numeric_limits<float>::infinity();
@@ -904,8 +903,8 @@ DeformationState turn_limbs_to_tips(const TemplateModel& model, const Deformatio
     const Vec3d from = at[l.vertex].cast<double>() - joint, to = l.point - joint;
     if (from.norm() < 1e-6 || to.norm() < 1e-6) continue;
     const Eigen::Quaterniond turn = Eigen::Quaterniond::FromTwoVectors(from, to);
-    log::debug("limb of tip {}: {} vertices, joint {} border vertices, turned {:.0f} deg", l.vertex,
-               limb.size(), border, 2 * std::acos(std::min(1.0, std::abs(turn.w()))) * 180 / M_PI);
+    log::debug("limb of tip {}: {} vertices, {} on its border, turned {:.0f} deg", l.vertex,
+               limb.size(), border, Eigen::AngleAxisd(turn).angle() * 180 / M_PI);
     const DeformationGraph& graph = model.graph;
     for (std::size_t k = 0; k < graph.node_vertex.size(); ++k) {
       const double d = dist[graph.node_vertex[k]];
