@@ -2,9 +2,9 @@
 # Builds the CMake preset "sanitize" (build-sanitize/: clang -O2, AddressSanitizer +
 # UndefinedBehaviorSanitizer, every report fatal) and runs under it
 #   1. every unit test (ctest over fourd_tests, two at a time);
-#   2. the end-to-end test: a small session (tests/e2e/sanitizer_session.yaml: two walks of 16
-#      and 14 frames, 8 cameras of 320x240) through every stage with `fourd run`, then a second
-#      `fourd run` that must find nothing to do.
+#   2. the end-to-end test: the workflow test session (tests/workflow/session.yaml: two walks of
+#      16 and 14 frames, 8 cameras of 320x240) through every stage with `fourd run`, then a
+#      second `fourd run` that must find nothing to do.
 # A sanitizer report or a leak aborts the process that made it, so its test (or its stage, and
 # with it the driver) fails. The ctest end-to-end tests of the release build (tiny sample,
 # workflow, glTF export) are left out here: they take too long under the sanitizers.
@@ -34,7 +34,7 @@ if [ "$what" != --unit ]; then
   work=build-sanitize/e2e_session
   rm -rf "$work"
   mkdir -p "$work"
-  cp tests/e2e/sanitizer_session.yaml "$work/session.yaml"
+  cp tests/workflow/session.yaml "$work/session.yaml"
   echo "== end to end under the sanitizers: $work"
   build-sanitize/bin/fourd run "$work"
   test -f "$work/reports/metrics.json" || { echo "no $work/reports/metrics.json"; exit 1; }
