@@ -79,6 +79,7 @@ struct StereoView {
 struct DepthMap {
   cv::Mat depth;  // CV_32F, full image, depth along the optical axis [m], 0 = none
   cv::Mat score;  // CV_32F, mean NCC of the chosen depth (-1 where none)
+  cv::Mat filled; // CV_8U, 1 where the depth was filled in from matched ones around it (or empty)
 };
 
 // The `count` cameras whose optical axes are closest in angle to `ref`'s, at most

@@ -14,6 +14,7 @@ void fuse_depth_maps(ScalarGrid& field, const std::vector<PinholeCamera>& camera
   const float band = static_cast<float>(options.band);
   const float hull_weight = static_cast<float>(options.hull_weight);
   const float score_weight = static_cast<float>(options.score_weight);
+  const float filled_weight = static_cast<float>(options.filled_weight);
   const float score_floor = static_cast<float>(min_score);
   const std::size_t n_cams = cameras.size();
   tbb::parallel_for(0, field.nz, [&](int z) {
@@ -38,9 +39,13 @@ void fuse_depth_maps(ScalarGrid& field, const std::vector<PinholeCamera>& camera
           if (d <= 0) continue;
           const float sd = d - static_cast<float>(c.z());  // > 0: in front of the surface
           if (sd < -tau) continue;                          // far behind: maybe hidden
+          const cv::Mat& filled = depth_maps[i].filled;
           const float s = depth_maps[i].score.at<float>(v, u);
-          const float w = (1 - score_weight) +
-                          score_weight * std::max(0.05f, (s - score_floor) / (1 - score_floor));
+          const float w =
+              !filled.empty() && filled.at<std::uint8_t>(v, u)
+                  ? filled_weight
+                  : (1 - score_weight) +
+                        score_weight * std::max(0.05f, (s - score_floor) / (1 - score_floor));
           sum += w * std::min(sd, tau);
           weight += w;
         }

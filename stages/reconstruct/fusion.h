@@ -24,6 +24,11 @@ struct FusionOptions {
   // the depths have passed the consistency check, so a lone wrong match does not.
   double hull_weight = 0.3;
   double score_weight = 1.0;   // 1: weight votes by their NCC score above min_ncc; 0: equally
+  // Weight of a depth filled in from the matched ones around a hole (depth_fill.h), relative
+  // to one matched depth's. Small: a filled depth too far behind the surface carves it away
+  // (on the default sample: 0.05 gives the best completeness and F-score, 0.1 the best p90
+  // accuracy, 0.3 loses completeness).
+  double filled_weight = 0.05;
 
   template <class V>
   void visit(V& v) {
@@ -32,6 +37,8 @@ struct FusionOptions {
     v("hull_weight", hull_weight, "weight of the hull's vote relative to one depth map",
       Range{0, 1000});
     v("score_weight", score_weight, "how much NCC scores weight the votes (0..1)", Range{0, 1});
+    v("filled_weight", filled_weight,
+      "weight of a filled-in depth's vote relative to one matched depth's", Range{0, 1000});
   }
 };
 

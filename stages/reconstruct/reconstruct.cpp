@@ -187,6 +187,11 @@ FrameResult reconstruct_frame(const Rig& rig, const FrameInput& input,
 
     // 3. Fusion.
     if (options.method == "stereo") {
+      tbb::parallel_for(0, n, [&](int i) {
+        fill_depth_holes(views[i].hull_depth, depth_maps[i], options.depth.front_margin,
+                         options.depth.search_depth, options.depth_fill);
+      });
+      timer.done("depth_fill");
       fuse_depth_maps(field, pinholes, depth_maps, options.depth.min_ncc, options.fusion);
       timer.done("fusion");
       surface = keep_largest_component(

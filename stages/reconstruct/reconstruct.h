@@ -6,8 +6,8 @@
 //   1. visual hull of the silhouettes, as a signed field on a voxel grid (visual_hull.h);
 //   2. per-camera depth maps by a hull-guided plane sweep against neighbouring cameras
 //      (depth_map.h);
-//   3. fusion of the depth maps with the hull into one field, trimmed to the hull (fusion.h),
-//      or COLMAP's stereo_fusion + poisson_mesher from the same depth maps (colmap_mvs.h);
+//   3. fusion of the depth maps, their holes inside the hull filled from the depths around them
+//      (depth_fill.h), with the hull into one field, trimmed to the hull (fusion.h), or COLMAP's stereo_fusion + poisson_mesher from the same depth maps (colmap_mvs.h);
 //   4. isosurface, largest component, holes filled, remeshed to a vertex count
 //      (mesh_cleanup.h).
 //
@@ -33,6 +33,7 @@
 #include "stages/common/stage.h"
 #include "stages/reconstruct/calibration_check.h"
 #include "stages/reconstruct/colmap_mvs.h"
+#include "stages/reconstruct/depth_fill.h"
 #include "stages/reconstruct/depth_map.h"
 #include "stages/reconstruct/fusion.h"
 #include "stages/reconstruct/mesh_cleanup.h"
@@ -56,6 +57,7 @@ struct ReconstructOptions {
   int visual_hull_step = 4;
   VisualHullOptions visual_hull;
   DepthMapOptions depth;
+  DepthFillOptions depth_fill;
   FusionOptions fusion;
   ColmapMvsOptions colmap;
   RemeshOptions remesh;
@@ -74,6 +76,7 @@ struct ReconstructOptions {
       "written visual hull: isosurface of every n-th hull sample", Range{1, 8});
     v("visual_hull", visual_hull, "visual hull");
     v("depth", depth, "depth maps (hull-guided plane sweep)");
+    v("depth_fill", depth_fill, "holes of the depth maps filled before fusion (method stereo)");
     v("fusion", fusion, "depth map fusion (method stereo)");
     v("colmap", colmap, "COLMAP fusion and meshing (method colmap)");
     v("remesh", remesh, "final remeshing");

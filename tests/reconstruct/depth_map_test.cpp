@@ -1,4 +1,5 @@
 #include "stages/reconstruct/depth_map.h"
+#include "stages/reconstruct/depth_fill.h"
 
 #include <gtest/gtest.h>
 
@@ -81,6 +82,71 @@ DepthMap exact_depth_map(const PinholeCamera& cam) {
     }
   }
   return m;
+}
+
+// The hull's first hit per pixel: a sphere `margin` larger than the textured one.
+cv::Mat hull_depth_of(const PinholeCamera& cam, double margin) {
+  cv::Mat hull = cv::Mat::zeros(cam.height, cam.width, CV_32F);
+  for (int y = 0; y < cam.height; ++y) {
+    for (int x = 0; x < cam.width; ++x) {
+      hull.at<float>(y, x) = static_cast<float>(sphere_depth(cam, x + 0.5, y + 0.5, kRadius + margin));
+    }
+  }
+  return hull;
+}
+
+// Largest error of the depths of `map` in `rect` against the sphere's.
+double worst_depth_error(const PinholeCamera& cam, const DepthMap& map, const cv::Rect& rect) {
+  double worst = 0;
+  for (int y = rect.y; y < rect.y + rect.height; ++y) {
+    for (int x = rect.x; x < rect.x + rect.width; ++x) {
+      worst = std::max(worst, std::abs(map.depth.at<float>(y, x) -
+                                       sphere_depth(cam, x + 0.5, y + 0.5, kRadius)));
+    }
+  }
+  return worst;
+}
+
+TEST(DepthFill, APatchWithoutDepthIsFilledOnTheSphere) {
+  const PinholeCamera cam = arc_cameras(3)[1];
+  DepthMap map = exact_depth_map(cam);
+  // A 13 cm patch of the sphere's front (40 x 40 px) that matching left empty, and a few lone
+  // pixels elsewhere.
+  const cv::Rect patch(300, 220, 40, 40);
+  map.depth(patch).setTo(0);
+  map.score(patch).setTo(-1);
+  const std::vector<cv::Point> lone = {{250, 200}, {380, 300}, {330, 150}};
+  for (const cv::Point& p : lone) map.depth.at<float>(p) = 0;
+
+  const std::size_t filled = fill_depth_holes(hull_depth_of(cam, 0.03), map, 0.01, 0.1, {});
+  EXPECT_EQ(filled, static_cast<std::size_t>(patch.area()) + lone.size());
+  EXPECT_EQ(cv::countNonZero(map.filled(patch)), patch.area());
+  // The depth behind the 3 cm larger hull varies slowly over the patch: interpolated from its
+  // border, it is within a millimetre of the sphere's (the hull alone is 3 cm off).
+  EXPECT_LT(worst_depth_error(cam, map, patch), 0.001);
+  for (const cv::Point& p : lone) {
+    EXPECT_NEAR(map.depth.at<float>(p), sphere_depth(cam, p.x + 0.5, p.y + 0.5, kRadius), 0.0002);
+  }
+}
+
+TEST(DepthFill, WrongMatchesOnTheBorderDoNotSpreadAndOpenHolesStayEmpty) {
+  const PinholeCamera cam = arc_cameras(3)[1];
+  const cv::Mat hull = hull_depth_of(cam, 0.03);
+  DepthMap map = exact_depth_map(cam);
+  // The band between the sphere and its 3 cm larger hull has no depth and borders the outline
+  // for about half its length: it is not enclosed, whatever its size.
+  const cv::Mat band = (hull > 0) & (map.depth <= 0);
+  ASSERT_GT(cv::countNonZero(band), 500);
+  // A hole with a few wrong matches (5 cm too far) along its top border.
+  const cv::Rect patch(300, 220, 40, 40);
+  map.depth(patch).setTo(0);
+  map.depth(cv::Rect(310, 219, 6, 1)) += 0.05f;
+  map.depth(cv::Rect(325, 218, 3, 2)) += 0.05f;
+  DepthFillOptions options;
+  options.max_pixels = 1000000;
+  EXPECT_EQ(fill_depth_holes(hull, map, 0.01, 0.1, options), static_cast<std::size_t>(patch.area()));
+  EXPECT_EQ(cv::countNonZero(map.filled & band), 0);
+  EXPECT_LT(worst_depth_error(cam, map, patch), 0.001);
 }
 
 TEST(DepthMap, TexturedSphereIsMatchedToSubPixelPrecision) {
