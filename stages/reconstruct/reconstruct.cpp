@@ -32,6 +32,9 @@ void ReconstructOptions::check() const {
   if (method != "stereo" && method != "colmap" && method != "visual_hull") {
     throw ConfigError(fmt::format("method '{}': expected stereo, colmap or visual_hull", method));
   }
+  if (guided.passes > 0 && depth.step >= guided.search_depth) {
+    throw ConfigError("depth.step must be smaller than guided.search_depth");
+  }
   if (fusion.band < depth.search_depth) {
     throw ConfigError("fusion.band must be at least depth.search_depth: the fused band must "
                       "cover the searched depths");
@@ -169,29 +172,70 @@ FrameResult reconstruct_frame(const Rig& rig, const FrameInput& input,
       views[i].roi = render.roi;
     });
     timer.done("hull_depth");
+    // Depth maps of every camera against `guides` (the hull's or the guide surface's first hit
+    // per pixel), checked against each other.
     std::vector<DepthMap> depth_maps(n);
-    tbb::parallel_for(0, n, [&](int i) {
-      std::vector<int> neighbours = select_neighbours(pinholes, i, options.depth.neighbours,
-                                                      options.depth.max_angle_deg);
-      depth_maps[i] = estimate_depth_map(views, i, neighbours, options.depth);
-    });
-    keep_consistent_depths(pinholes, depth_maps, options.depth.consistent_views,
-                           options.depth.consistency_tolerance);
-    std::size_t hull_pixels = 0, matched = 0;
-    for (int i = 0; i < n; ++i) {
-      hull_pixels += cv::countNonZero(views[i].hull_depth > 0);
-      matched += cv::countNonZero(depth_maps[i].depth > 0);
-    }
-    result.depth_coverage = hull_pixels ? double(matched) / hull_pixels : 0.0;
+    auto match = [&](const std::vector<StereoView>& guides, const DepthMapOptions& depth) {
+      tbb::parallel_for(0, n, [&](int i) {
+        std::vector<int> neighbours =
+            select_neighbours(pinholes, i, depth.neighbours, depth.max_angle_deg);
+        depth_maps[i] = estimate_depth_map(guides, i, neighbours, depth);
+      });
+      keep_consistent_depths(pinholes, depth_maps, depth.consistent_views,
+                             depth.consistency_tolerance);
+    };
+    auto fill = [&](const std::vector<StereoView>& guides, const DepthMapOptions& depth) {
+      tbb::parallel_for(0, n, [&](int i) {
+        fill_depth_holes(guides[i].hull_depth, depth_maps[i], depth.front_margin,
+                         depth.search_depth, options.depth_fill);
+      });
+    };
+    // Fraction of the hull's pixels whose depth was matched (not filled in).
+    auto measure_coverage = [&] {
+      std::size_t hull_pixels = 0, matched = 0;
+      for (int i = 0; i < n; ++i) {
+        hull_pixels += cv::countNonZero(views[i].hull_depth > 0);
+        cv::Mat measured = depth_maps[i].depth > 0;
+        if (!depth_maps[i].filled.empty()) measured &= depth_maps[i].filled == 0;
+        matched += cv::countNonZero(measured);
+      }
+      result.depth_coverage = hull_pixels ? double(matched) / hull_pixels : 0.0;
+    };
+    match(views, options.depth);
+    measure_coverage();
     timer.done("depth_maps");
 
     // 3. Fusion.
     if (options.method == "stereo") {
-      tbb::parallel_for(0, n, [&](int i) {
-        fill_depth_holes(views[i].hull_depth, depth_maps[i], options.depth.front_margin,
-                         options.depth.search_depth, options.depth_fill);
-      });
+      fill(views, options.depth);
       timer.done("depth_fill");
+      for (int pass = 0; pass < options.guided.passes; ++pass) {
+        // The previous pass's surface, its filled depths at full weight, guides a sweep over a
+        // narrower range: the matching windows follow that surface's slant rather than the
+        // hull's, and a neighbour's view of a point is tested against it.
+        ScalarGrid guide_field = field;
+        FusionOptions guide_fusion = options.fusion;
+        guide_fusion.filled_weight = options.guided.filled_weight;
+        fuse_depth_maps(guide_field, pinholes, depth_maps, options.depth.min_ncc, guide_fusion);
+        const Mesh guide = keep_largest_component(
+            extract_isosurface(subsample(guide_field, options.isosurface_step), 0.0f));
+        if (guide.triangles.empty()) break;
+        MeshRaycaster guide_caster(guide);
+        std::vector<StereoView> guided = views;
+        tbb::parallel_for(0, n, [&](int i) {
+          SurfaceRender render = guide_caster.render(pinholes[i]);
+          guided[i].hull_depth = render.depth;
+          guided[i].roi = render.roi;
+        });
+        DepthMapOptions depth = options.depth;
+        depth.front_margin = options.guided.front_margin;
+        depth.search_depth = options.guided.search_depth;
+        depth.occlusion_margin = options.guided.occlusion_margin;
+        match(guided, depth);
+        measure_coverage();
+        fill(guided, depth);
+        timer.done("guided_pass");
+      }
       fuse_depth_maps(field, pinholes, depth_maps, options.depth.min_ncc, options.fusion);
       timer.done("fusion");
       surface = keep_largest_component(
@@ -321,8 +365,8 @@ nlohmann::json frame_record(const std::string& take, int frame, const FrameResul
   j["depth_coverage"] = r.depth_coverage;
   nlohmann::json seconds = nlohmann::json::object();
   double total = 0;
-  for (const auto& [step, s] : r.seconds) {
-    seconds[step] = s;
+  for (const auto& [step, s] : r.seconds) {  // a step done more than once: its total
+    seconds[step] = seconds.value(step, 0.0) + s;
     total += s;
   }
   j["seconds"] = seconds;

@@ -6,9 +6,13 @@
 //   1. visual hull of the silhouettes, as a signed field on a voxel grid (visual_hull.h);
 //   2. per-camera depth maps by a hull-guided plane sweep against neighbouring cameras
 //      (depth_map.h);
-//   3. fusion of the depth maps, their holes inside the hull filled from the depths around them
-//      (depth_fill.h), with the hull into one field, trimmed to the hull (fusion.h), or COLMAP's stereo_fusion + poisson_mesher from the same depth maps (colmap_mvs.h);
-//   4. isosurface, largest component, holes filled, remeshed to a vertex count
+//   3. (method stereo) the depth maps' holes inside the hull filled from the depths around them
+//      (depth_fill.h), then a second sweep over a narrow range guided by their fused surface
+//      (its windows follow that surface's slant, not the hull's; GuidedPassOptions);
+//   4. fusion of the depth maps with the hull into one field, trimmed to the hull (fusion.h),
+//      or COLMAP's stereo_fusion + poisson_mesher from the first sweep's depth maps
+//      (colmap_mvs.h);
+//   5. isosurface, largest component, holes filled, remeshed to a vertex count
 //      (mesh_cleanup.h).
 //
 // Outputs (in reconstruct/, or reconstruct_oracle/ in oracle mode):
@@ -42,6 +46,27 @@
 
 namespace fourd::reconstruct {
 
+// Sweeps guided by the previous pass's fused surface (method stereo).
+struct GuidedPassOptions {
+  int passes = 1;                 // guided sweeps after the hull-guided one (0: none)
+  double filled_weight = 1.0;     // weight of filled-in depths in the guide surface's fusion
+  double front_margin = 0.015;    // depth searched in front of the guide surface [m]
+  double search_depth = 0.03;     // depth searched behind the guide surface [m]
+  double occlusion_margin = 0.03; // a neighbour sees a point at most this far behind its guide [m]
+
+  template <class V>
+  void visit(V& v) {
+    v("passes", passes, "sweeps guided by the previous pass's surface (0: none)", Range{0, 10});
+    v("filled_weight", filled_weight,
+      "weight of filled-in depths in the guide's fusion (relative to a matched depth)",
+      Range{0, 1000});
+    v("front_margin", front_margin, "depth searched in front of the guide [m]", Range{0, 0.5});
+    v("search_depth", search_depth, "depth searched behind the guide [m]", Range{0.001, 2});
+    v("occlusion_margin", occlusion_margin,
+      "how far behind a neighbour's guide surface a point can still be seen [m]", Range{0, 2});
+  }
+};
+
 struct ReconstructOptions {
   // "stereo": hull refined by multi-view stereo, fused here (TSDF); "colmap": the same depth
   // maps fused by COLMAP's stereo_fusion and meshed by poisson_mesher; "visual_hull": the hull.
@@ -58,6 +83,7 @@ struct ReconstructOptions {
   VisualHullOptions visual_hull;
   DepthMapOptions depth;
   DepthFillOptions depth_fill;
+  GuidedPassOptions guided;
   FusionOptions fusion;
   ColmapMvsOptions colmap;
   RemeshOptions remesh;
@@ -77,6 +103,7 @@ struct ReconstructOptions {
     v("visual_hull", visual_hull, "visual hull");
     v("depth", depth, "depth maps (hull-guided plane sweep)");
     v("depth_fill", depth_fill, "holes of the depth maps filled before fusion (method stereo)");
+    v("guided", guided, "sweeps guided by the previous pass's surface (method stereo)");
     v("fusion", fusion, "depth map fusion (method stereo)");
     v("colmap", colmap, "COLMAP fusion and meshing (method colmap)");
     v("remesh", remesh, "final remeshing");
