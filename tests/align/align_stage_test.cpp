@@ -53,7 +53,7 @@ class AlignSession {
            "stages:\n  align:\n    template_vertices: 600\n    remesh_iterations: 3\n"
            // A coarse template of a coarse figure: accept its fits (this test is about jobs).
            "    max_surface_rms: 0.1\n    max_uncovered_fraction: 0.5\n"
-           "    registration: {graph_nodes: 60, iterations_per_level: 3, refine_iterations: 2"
+           "    registration: {graph_nodes: 60, iterations_per_level: 3, refine_iterations: 2, limb_fraction: 0"
         << registration_extra << "}\n";
   }
 
