@@ -72,7 +72,9 @@ struct DepthMapOptions {
 struct StereoView {
   PinholeCamera camera;
   cv::Mat gray;         // CV_32F grey levels 0..255, undistorted to `camera`
-  cv::Mat hull_depth;   // CV_32F first hit of the visual hull per pixel [m], 0 = outside
+  // CV_32F first hit per pixel [m] (0 = outside) of the surface the sweep searches behind: the
+  // visual hull, or in a guided pass the previous pass's fused surface.
+  cv::Mat hull_depth;
   cv::Rect roi;         // bounding rectangle of the hull's pixels
 };
 
