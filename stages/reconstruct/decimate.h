@@ -5,7 +5,8 @@
 
 namespace fourd::reconstruct {
 
-// Collapses edges by increasing quadric error (Garland & Heckbert), refusing collapses that
+// Collapses edges by increasing quadric error (Garland & Heckbert; down to 3 x the target by
+// the best of a few random candidates at a time, which is faster), refusing collapses that
 // flip a face normal by more than `max_normal_deviation_deg` (<= 0: no such check), until at most `target_vertices`
 // remain (or no legal collapse is left). The surface's topology is kept (closed stays
 // closed). Non-manifold input faces are dropped by OpenMesh. A mesh already at or below the

@@ -1,5 +1,8 @@
 #include "stages/reconstruct/mesh_cleanup.h"
 
+#include <CGAL/AABB_traits.h>
+#include <CGAL/AABB_tree.h>
+#include <CGAL/AABB_triangle_primitive.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/border.h>
 #include <CGAL/Polygon_mesh_processing/measure.h>
@@ -124,10 +127,11 @@ int fill_holes(Mesh& mesh) {
 Mesh remesh(const Mesh& mesh, const RemeshOptions& options) {
   if (options.target_vertices <= 0 || mesh.triangles.empty()) return mesh;
   const double target = options.target_vertices;
+  const bool isotropic = options.mode == "isotropic";
   // Fast quadric decimation first (OpenMesh): CGAL's edge collapse and isotropic remeshing
-  // cost seconds on a fine isosurface, and the remeshing only needs a mesh near the target.
+  // cost seconds on a fine isosurface.
   const int decimated_vertices = static_cast<int>(
-      std::lround(options.iterations > 0 ? options.decimate_factor * target : target));
+      std::lround(isotropic && options.iterations > 0 ? options.decimate_factor * target : target));
   Mesh coarse = decimate(mesh, decimated_vertices);
   if (options.iterations <= 0) return coarse;
   SurfaceMesh sm = to_surface_mesh(coarse);
@@ -140,21 +144,45 @@ Mesh remesh(const Mesh& mesh, const RemeshOptions& options) {
   if (!CGAL::is_valid_polygon_mesh(sm) || sm.number_of_faces() == 0) {
     throw SolverError("remeshing: the decimated surface is not a valid polygon mesh");
   }
+  // The input surface (as a triangle soup: it need not be a valid polygon mesh), to put the
+  // vertices back on after each step: relaxation moves them along the tangent planes, off a
+  // curved surface, and the remeshing's own projection is onto the decimated mesh.
+  using Triangle = Kernel::Triangle_3;
+  using Primitive = CGAL::AABB_triangle_primitive<Kernel, std::vector<Triangle>::const_iterator>;
+  using Tree = CGAL::AABB_tree<CGAL::AABB_traits<Kernel, Primitive>>;
+  std::vector<Triangle> input;
+  input.reserve(mesh.triangles.size());
+  for (const Tri& t : mesh.triangles) {
+    auto corner = [&](int k) {
+      const Vec3f& p = mesh.positions[t[k]];
+      return Kernel::Point_3(p.x(), p.y(), p.z());
+    };
+    const Triangle triangle(corner(0), corner(1), corner(2));
+    if (!triangle.is_degenerate()) input.push_back(triangle);
+  }
+  Tree tree(input.begin(), input.end());
+  tree.accelerate_distance_queries();
+  auto project = [&] {
+    if (input.empty()) return;
+    for (auto v : vertices(sm)) sm.point(v) = tree.closest_point(sm.point(v));
+  };
   // Equilateral triangles of side L cover the area A with 2V faces: A = 2V (sqrt(3)/4) L^2.
-  const double area = PMP::area(sm);
-  const double edge = std::sqrt(2.0 * area / (std::sqrt(3.0) * target));
-  // One remeshing iteration at a time, its tangential relaxation run separately: the
-  // split/collapse/flip pass can leave a vertex whose faces are all degenerate, and the
+  const double edge = std::sqrt(2.0 * PMP::area(sm) / (std::sqrt(3.0) * target));
+  // Isotropic: one remeshing iteration at a time, its tangential relaxation run separately:
+  // the split/collapse/flip pass can leave a vertex whose faces are all degenerate, and the
   // relaxation inside CGAL 5.5's isotropic_remeshing then looks up the edge of a null
   // halfedge and crashes. Degenerate faces are removed before each relaxation instead.
   for (int i = 0; i < options.iterations; ++i) {
-    PMP::isotropic_remeshing(
-        faces(sm), edge, sm,
-        CGAL::parameters::number_of_iterations(1).number_of_relaxation_steps(0));
-    sm.collect_garbage();
-    PMP::remove_degenerate_faces(sm);
-    sm.collect_garbage();
+    if (isotropic) {
+      PMP::isotropic_remeshing(
+          faces(sm), edge, sm,
+          CGAL::parameters::number_of_iterations(1).number_of_relaxation_steps(0));
+      sm.collect_garbage();
+      PMP::remove_degenerate_faces(sm);
+      sm.collect_garbage();
+    }
     PMP::tangential_relaxation(vertices(sm), sm, CGAL::parameters::number_of_iterations(1));
+    project();
   }
   sm.collect_garbage();
   return from_surface_mesh(sm);

@@ -1,6 +1,8 @@
 #pragma once
 // Turning a raw reconstructed surface into the mesh later stages want: one closed component,
 // no holes, a given number of well-shaped triangles.
+#include <string>
+
 #include "pipeline/core/config.h"
 #include "pipeline/core/mesh.h"
 
@@ -8,16 +10,23 @@ namespace fourd::reconstruct {
 
 struct RemeshOptions {
   int target_vertices = 5000;   // vertices of the final mesh (0: keep the fused surface as is)
-  int iterations = 3;           // isotropic remeshing iterations (0: quadric decimation only)
-  double decimate_factor = 1.5; // first decimate down to this many times the target
+  // "relax": quadric decimation to the target (its vertices gather where the surface curves),
+  // then tangential relaxation into better-shaped triangles; "isotropic": decimation to
+  // decimate_factor x the target, then isotropic remeshing to edges of one length. Both end
+  // with every vertex on the input surface.
+  std::string mode = "relax";
+  int iterations = 3;           // relaxation or remeshing iterations (0: decimation only)
+  double decimate_factor = 1.5; // mode isotropic: first decimate to this many times the target
 
   template <class V>
   void visit(V& v) {
     v("target_vertices", target_vertices, "vertices of the final mesh (0: no remeshing)",
       Range{0, 10000000});
-    v("iterations", iterations, "isotropic remeshing iterations", Range{0, 100});
+    v("mode", mode, "relax (decimation, then tangential relaxation) | isotropic");
+    v("iterations", iterations, "relaxation or isotropic remeshing iterations", Range{0, 100});
     v("decimate_factor", decimate_factor,
-      "quadric decimation to this many times target_vertices before remeshing", Range{1, 1000});
+      "mode isotropic: quadric decimation to this many times target_vertices first",
+      Range{1, 1000});
   }
 };
 

@@ -1,8 +1,10 @@
 // Remeshing a fine isosurface down to a vertex count: quadric decimation (OpenMesh) and the
-// isotropic remeshing after it keep the surface closed and on the shape.
+// relaxation or isotropic remeshing after it keep the surface closed and on the shape.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <map>
+#include <thread>
 
 #include "pipeline/core/isosurface.h"
 #include "pipeline/core/mesh_io.h"
@@ -49,6 +51,22 @@ double max_radial_error(const Mesh& mesh) {
   return worst;
 }
 
+// Fraction of the triangles whose smallest angle is below `degrees`.
+double share_of_thin_triangles(const Mesh& mesh, double degrees) {
+  std::size_t thin = 0;
+  for (const Tri& t : mesh.triangles) {
+    double smallest = 180;
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d p = mesh.positions[t[k]].cast<double>();
+      const Eigen::Vector3d u = mesh.positions[t[(k + 1) % 3]].cast<double>() - p;
+      const Eigen::Vector3d w = mesh.positions[t[(k + 2) % 3]].cast<double>() - p;
+      smallest = std::min(smallest, std::atan2(u.cross(w).norm(), u.dot(w)) * 180 / M_PI);
+    }
+    thin += smallest < degrees;
+  }
+  return mesh.triangles.empty() ? 0.0 : double(thin) / mesh.triangles.size();
+}
+
 // Closed mesh: V - E + F = 2 for a sphere.
 int euler(const Mesh& mesh) {
   std::map<std::pair<int, int>, int> edges;
@@ -69,6 +87,26 @@ TEST(MeshCleanup, DecimateReachesTheTargetAndStaysOnTheSphere) {
   EXPECT_LT(max_radial_error(coarse), 0.002);
 }
 
+// The first, multiple-choice stage of decimation draws from rand(): a mesh decimated while
+// another one is decimated on another thread (frames run in parallel) comes out the same as
+// when decimated alone.
+TEST(MeshCleanup, DecimateGivesTheSameMeshBesideAnotherDecimation) {
+  const Mesh fine = test::make_icosphere(5, 0.3f);  // 10,242 vertices: > 3 x the target
+  const Mesh alone = decimate(fine, 1000);
+  Mesh other_input = fine;
+  for (Vec3f& p : other_input.positions) p *= 1.5f;
+  Mesh beside, other;
+  std::thread t([&] { other = decimate(other_input, 800); });
+  beside = decimate(fine, 1000);
+  t.join();
+  ASSERT_EQ(beside.positions.size(), alone.positions.size());
+  ASSERT_EQ(beside.triangles.size(), alone.triangles.size());
+  for (std::size_t i = 0; i < alone.positions.size(); ++i) {
+    ASSERT_EQ(beside.positions[i], alone.positions[i]) << "vertex " << i;
+  }
+  EXPECT_FALSE(other.triangles.empty());
+}
+
 TEST(MeshCleanup, DecimateLeavesASmallMeshAlone) {
   const Mesh fine = fine_sphere();
   const Mesh same = decimate(fine, static_cast<int>(fine.positions.size()) + 10);
@@ -76,9 +114,33 @@ TEST(MeshCleanup, DecimateLeavesASmallMeshAlone) {
   EXPECT_EQ(same.triangles.size(), fine.triangles.size());
 }
 
-TEST(MeshCleanup, RemeshGivesAboutTheTargetCountOnTheShape) {
+TEST(MeshCleanup, RelaxedRemeshKeepsTheCountAndShapesTheTriangles) {
   const Mesh fine = fine_sphere();
   RemeshOptions options;
+  options.target_vertices = 2000;
+  options.iterations = 0;  // decimation only
+  const Mesh quick = remesh(fine, options);
+  EXPECT_LE(quick.positions.size(), 2000u);
+  EXPECT_GE(quick.positions.size(), 1900u);
+  EXPECT_LT(max_radial_error(quick), 0.002);
+
+  options.mode = "relax";
+  options.iterations = 3;
+  const Mesh relaxed = remesh(fine, options);
+  EXPECT_EQ(relaxed.positions.size(), quick.positions.size());
+  EXPECT_EQ(boundary_edges(relaxed), 0u);
+  EXPECT_EQ(euler(relaxed), 2);
+  // Relaxed along the surface, then put back onto it: as close to the sphere as the input.
+  EXPECT_LT(max_radial_error(relaxed), 0.001);
+  const double thin_before = share_of_thin_triangles(quick, 20.0);
+  const double thin_after = share_of_thin_triangles(relaxed, 20.0);
+  EXPECT_LT(thin_after, 0.5 * thin_before) << thin_before << " -> " << thin_after;
+}
+
+TEST(MeshCleanup, IsotropicRemeshGivesAboutTheTargetCountOnTheShape) {
+  const Mesh fine = fine_sphere();
+  RemeshOptions options;
+  options.mode = "isotropic";
   options.target_vertices = 2000;
   options.iterations = 2;
   const Mesh out = remesh(fine, options);
@@ -86,13 +148,8 @@ TEST(MeshCleanup, RemeshGivesAboutTheTargetCountOnTheShape) {
   EXPECT_NEAR(static_cast<double>(out.positions.size()), 2000.0, 600.0);
   EXPECT_EQ(boundary_edges(out), 0u);
   EXPECT_EQ(euler(out), 2);
-  EXPECT_LT(max_radial_error(out), 0.003);
-
-  options.iterations = 0;  // decimation only
-  const Mesh quick = remesh(fine, options);
-  EXPECT_LE(quick.positions.size(), 2000u);
-  EXPECT_GE(quick.positions.size(), 1900u);
-  EXPECT_LT(max_radial_error(quick), 0.002);
+  EXPECT_LT(max_radial_error(out), 0.001);
+  EXPECT_LT(share_of_thin_triangles(out, 20.0), 0.01);
 }
 
 // Two spheres pinched together at one shared vertex, plus a stray vertex and a zero-area
@@ -120,19 +177,23 @@ TEST(MeshCleanup, RemeshSurvivesPinchedAndDegenerateInput) {
   m.positions.push_back(Vec3f(1, 1, 1));
   m.positions.push_back(Vec3f(1, 1, 1));
   m.triangles.push_back({d, d + 1, d + 2});  // zero area
-  RemeshOptions options;
-  options.target_vertices = 1500;
-  Mesh out;
-  try {
-    out = remesh(m, options);
-  } catch (const Error&) {
-    return;  // refusing with a clear error is acceptable; crashing is not
-  }
-  ASSERT_FALSE(out.triangles.empty());
-  for (const Tri& t : out.triangles) {
-    for (int v : t) {
-      ASSERT_GE(v, 0);
-      ASSERT_LT(v, static_cast<int>(out.positions.size()));
+  for (const char* mode : {"relax", "isotropic"}) {
+    SCOPED_TRACE(mode);
+    RemeshOptions options;
+    options.mode = mode;
+    options.target_vertices = 1500;
+    Mesh out;
+    try {
+      out = remesh(m, options);
+    } catch (const Error&) {
+      continue;  // refusing with a clear error is acceptable; crashing is not
+    }
+    ASSERT_FALSE(out.triangles.empty());
+    for (const Tri& t : out.triangles) {
+      for (int v : t) {
+        ASSERT_GE(v, 0);
+        ASSERT_LT(v, static_cast<int>(out.positions.size()));
+      }
     }
   }
 }
@@ -142,7 +203,9 @@ TEST(MeshCleanup, RemeshSurvivesPinchedAndDegenerateInput) {
 // gives a closed mesh of about the target size.
 TEST(MeshCleanup, RemeshSurvivesAVertexLeftWithOnlyDegenerateFaces) {
   const Mesh m = read_ply(std::filesystem::path(FOURD_SOURCE_DIR) / "tests/reconstruct/data/remesh_crash.ply");
-  const Mesh out = remesh(m, RemeshOptions{});
+  RemeshOptions options;
+  options.mode = "isotropic";
+  const Mesh out = remesh(m, options);
   EXPECT_NEAR(static_cast<double>(out.positions.size()), 5000.0, 1000.0);
   EXPECT_EQ(boundary_edges(out), 0u);
 }
