@@ -32,6 +32,9 @@ void ReconstructOptions::check() const {
   if (method != "stereo" && method != "colmap" && method != "visual_hull") {
     throw ConfigError(fmt::format("method '{}': expected stereo, colmap or visual_hull", method));
   }
+  if (remesh.mode != "relax" && remesh.mode != "isotropic") {
+    throw ConfigError(fmt::format("remesh.mode '{}': expected relax or isotropic", remesh.mode));
+  }
   if (guided.passes > 0 && depth.step >= guided.search_depth) {
     throw ConfigError("depth.step must be smaller than guided.search_depth");
   }

@@ -74,9 +74,11 @@ struct ReconstructOptions {
   int min_cameras = 3;             // usable cameras a frame needs
   bool write_visual_hull = true;   // also write visual_hull/<take>/<frame>.ply
   int frames_in_parallel = 0;      // frames reconstructed at once (0: as many as threads)
-  // Isosurfaces are extracted from every n-th sample of the fields: the final mesh has ~2 cm
-  // edges, and a fine grid's isosurface (several 100k vertices) costs seconds to decimate.
-  int isosurface_step = 3;
+  // Isosurfaces are extracted from every n-th sample of the fields: a fine grid's isosurface
+  // (several 100k vertices) costs seconds to decimate. On the default sample (6 mm voxels) the
+  // 12 mm isosurface decimated to 5,000 vertices covers more of the true surface than the
+  // 18 mm one (completeness 0.941 -> 0.947): the decimation keeps its creases.
+  int isosurface_step = 2;
   // The visual hull written for validation is the isosurface of every n-th hull sample, not
   // decimated (cheap; at 4 x 6 mm it is within ~1-2 mm of the full-resolution hull).
   int visual_hull_step = 4;
