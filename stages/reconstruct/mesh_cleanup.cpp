@@ -1,8 +1,5 @@
 #include "stages/reconstruct/mesh_cleanup.h"
 
-#include <CGAL/AABB_traits.h>
-#include <CGAL/AABB_tree.h>
-#include <CGAL/AABB_triangle_primitive.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/border.h>
 #include <CGAL/Polygon_mesh_processing/measure.h>
@@ -17,8 +14,10 @@
 
 #include <cmath>
 #include <numeric>
+#include <optional>
 
 #include "pipeline/core/error.h"
+#include "pipeline/geometry/mesh_query.h"
 #include "stages/reconstruct/decimate.h"
 
 namespace fourd::reconstruct {
@@ -147,24 +146,19 @@ Mesh remesh(const Mesh& mesh, const RemeshOptions& options) {
   // The input surface (as a triangle soup: it need not be a valid polygon mesh), to put the
   // vertices back on after each step: relaxation moves them along the tangent planes, off a
   // curved surface, and the remeshing's own projection is onto the decimated mesh.
-  using Triangle = Kernel::Triangle_3;
-  using Primitive = CGAL::AABB_triangle_primitive<Kernel, std::vector<Triangle>::const_iterator>;
-  using Tree = CGAL::AABB_tree<CGAL::AABB_traits<Kernel, Primitive>>;
-  std::vector<Triangle> input;
-  input.reserve(mesh.triangles.size());
-  for (const Tri& t : mesh.triangles) {
-    auto corner = [&](int k) {
-      const Vec3f& p = mesh.positions[t[k]];
-      return Kernel::Point_3(p.x(), p.y(), p.z());
-    };
-    const Triangle triangle(corner(0), corner(1), corner(2));
-    if (!triangle.is_degenerate()) input.push_back(triangle);
+  std::optional<MeshQuery> input;
+  try {
+    input.emplace(mesh);
+  } catch (const InputError&) {
+    // No non-degenerate input triangle: nothing to put the vertices back on.
   }
-  Tree tree(input.begin(), input.end());
-  tree.accelerate_distance_queries();
   auto project = [&] {
-    if (input.empty()) return;
-    for (auto v : vertices(sm)) sm.point(v) = tree.closest_point(sm.point(v));
+    if (!input) return;
+    for (auto v : vertices(sm)) {
+      const Kernel::Point_3& p = sm.point(v);
+      const Vec3f q = input->closest(Vec3f(p.x(), p.y(), p.z())).point;
+      sm.point(v) = Kernel::Point_3(q.x(), q.y(), q.z());
+    }
   };
   // Equilateral triangles of side L cover the area A with 2V faces: A = 2V (sqrt(3)/4) L^2.
   const double edge = std::sqrt(2.0 * PMP::area(sm) / (std::sqrt(3.0) * target));

@@ -14,7 +14,7 @@
 #include "pipeline/core/log.h"
 #include "pipeline/core/mesh_io.h"
 #include "pipeline/core/staged_folder.h"
-#include "stages/validate/mesh_query.h"
+#include "pipeline/geometry/mesh_query.h"
 
 namespace fourd::validate {
 namespace {

@@ -23,7 +23,7 @@
 #include "pipeline/core/files.h"
 #include "pipeline/core/image_io.h"
 #include "pipeline/core/mesh_io.h"
-#include "stages/validate/mesh_query.h"
+#include "pipeline/geometry/mesh_query.h"
 #include "stages/validate/sampling.h"
 #include "stages/validate/validate.h"
 #include "stages/validate/validate_align.h"

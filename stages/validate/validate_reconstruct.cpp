@@ -8,11 +8,7 @@
 // Both surfaces are sampled uniformly by area (a fixed number of points per mesh, fixed seed);
 // accuracy = distance of reconstruction samples to the true surface, completeness = fraction of
 // true-surface samples within 10 mm of the reconstruction, F-score at 5 mm from precision and
-// recall at 5 mm. Distances by CGAL's AABB tree (this is the only CGAL file of the stage).
-#include <CGAL/AABB_traits.h>
-#include <CGAL/AABB_tree.h>
-#include <CGAL/AABB_triangle_primitive.h>
-#include <CGAL/Simple_cartesian.h>
+// recall at 5 mm. Distances by MeshQuery (CGAL's AABB tree).
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 #include <tbb/parallel_for.h>
@@ -30,6 +26,7 @@
 #include "pipeline/core/files.h"
 #include "pipeline/core/image_io.h"
 #include "pipeline/core/mesh_io.h"
+#include "pipeline/geometry/mesh_query.h"
 #include "stages/validate/sampling.h"
 #include "stages/validate/validate.h"
 
@@ -38,42 +35,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-using K = CGAL::Simple_cartesian<double>;
-using Triangle = K::Triangle_3;
-using Point = K::Point_3;
-using Primitive = CGAL::AABB_triangle_primitive<K, std::vector<Triangle>::const_iterator>;
-using Tree = CGAL::AABB_tree<CGAL::AABB_traits<K, Primitive>>;
-
 constexpr int kSamplesPerMesh = 20000;
 constexpr double kCompletenessMm = 10, kFscoreMm = 5;
 constexpr double kHeatMaxMm = 20;  // colour scale of the heat-maps
-
-// Distances to one mesh's surface.
-class SurfaceDistance {
- public:
-  explicit SurfaceDistance(const Mesh& mesh) {
-    triangles_.reserve(mesh.triangles.size());
-    for (const Tri& t : mesh.triangles) {
-      auto p = [&](int k) {
-        const Vec3f& v = mesh.positions[t[k]];
-        return Point(v.x(), v.y(), v.z());
-      };
-      Triangle tri(p(0), p(1), p(2));
-      if (!tri.is_degenerate()) triangles_.push_back(tri);
-    }
-    if (triangles_.empty()) throw InputError("mesh without a non-degenerate triangle");
-    tree_.insert(triangles_.begin(), triangles_.end());
-    tree_.build();
-    tree_.accelerate_distance_queries();
-  }
-  double operator()(const Vec3f& p) const {
-    return std::sqrt(tree_.squared_distance(Point(p.x(), p.y(), p.z())));
-  }
-
- private:
-  std::vector<Triangle> triangles_;
-  Tree tree_;
-};
 
 // `count` points uniformly distributed over the surface by area.
 std::vector<Vec3f> sample_surface(const Mesh& mesh, int count, unsigned seed) {
@@ -107,10 +71,6 @@ std::vector<Vec3f> sample_surface(const Mesh& mesh, int count, unsigned seed) {
   return out;
 }
 
-
-
-
-
 double fraction_within(const std::vector<double>& v, double bound) {
   if (v.empty()) return 0;
   return double(std::count_if(v.begin(), v.end(), [&](double d) { return d <= bound; })) / v.size();
@@ -140,16 +100,16 @@ struct Scores {
   }
 };
 
-Distances compare(const Mesh& mesh, const Mesh& truth, const SurfaceDistance& to_truth,
+Distances compare(const Mesh& mesh, const Mesh& truth, const MeshQuery& to_truth,
                   unsigned seed) {
   Distances d;
-  const SurfaceDistance to_mesh(mesh);
+  const MeshQuery to_mesh(mesh);
   const std::vector<Vec3f> a = sample_surface(mesh, kSamplesPerMesh, seed);
   const std::vector<Vec3f> b = sample_surface(truth, kSamplesPerMesh, seed + 1);
   d.accuracy.resize(a.size());
   d.completeness.resize(b.size());
-  for (std::size_t i = 0; i < a.size(); ++i) d.accuracy[i] = 1000 * to_truth(a[i]);
-  for (std::size_t i = 0; i < b.size(); ++i) d.completeness[i] = 1000 * to_mesh(b[i]);
+  for (std::size_t i = 0; i < a.size(); ++i) d.accuracy[i] = 1000 * to_truth.distance(a[i]);
+  for (std::size_t i = 0; i < b.size(); ++i) d.completeness[i] = 1000 * to_mesh.distance(b[i]);
   return d;
 }
 
@@ -293,7 +253,7 @@ StageReport validate_reconstruct(const ValidationContext& ctx) {
       job.has_hull = fs::exists(hull_path);
       if (!job.has_mesh && !job.has_hull) return;
       const Mesh truth = read_ply(truth_dir / job.take / file);
-      const SurfaceDistance to_truth(truth);
+      const MeshQuery to_truth(truth);
       const unsigned seed = static_cast<unsigned>(1000 * i + 17);
       if (job.has_mesh) job.mesh = compare(read_ply(mesh_path), truth, to_truth, seed);
       if (job.has_hull) job.hull = compare(read_ply(hull_path), truth, to_truth, seed);
@@ -404,7 +364,7 @@ StageReport validate_reconstruct(const ValidationContext& ctx) {
       const FrameJob& job = *frames[frames.size() / 2];
       const std::string file = frame_name(job.frame) + ".ply";
       const Mesh truth = read_ply(truth_dir / take / file);
-      const SurfaceDistance to_truth(truth);
+      const MeshQuery to_truth(truth);
       std::vector<std::pair<std::string, Mesh>> meshes = {{"final mesh", read_ply(out_dir / take / file)}};
       if (job.has_hull) meshes.push_back({"visual hull", read_ply(out_dir / "visual_hull" / take / file)});
       const int count = std::min<int>(ctx.options.picture_cameras, static_cast<int>(cameras.size()));
@@ -419,7 +379,7 @@ StageReport validate_reconstruct(const ValidationContext& ctx) {
           const Mesh& mesh = surface;  // a lambda cannot capture a structured binding (C++17)
           std::vector<double> mm(mesh.positions.size());
           tbb::parallel_for(std::size_t{0}, mm.size(),
-                            [&](std::size_t v) { mm[v] = 1000 * to_truth(mesh.positions[v]); });
+                            [&](std::size_t v) { mm[v] = 1000 * to_truth.distance(mesh.positions[v]); });
           panels.push_back(heat_map(camera, mesh, mm, scale,
                                     fmt::format("{} {} frame {}: {}", take, camera.name, job.frame, name)));
         }

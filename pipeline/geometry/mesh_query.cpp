@@ -1,4 +1,4 @@
-#include "stages/validate/mesh_query.h"
+#include "pipeline/geometry/mesh_query.h"
 
 #include <CGAL/AABB_traits.h>
 #include <CGAL/AABB_tree.h>
@@ -11,7 +11,7 @@
 
 #include "pipeline/core/error.h"
 
-namespace fourd::validate {
+namespace fourd {
 namespace {
 
 using K = CGAL::Simple_cartesian<double>;
@@ -95,4 +95,4 @@ std::vector<double> MeshQuery::crossings_along_x(double y, double z) const {
   return xs;
 }
 
-}  // namespace fourd::validate
+}  // namespace fourd

@@ -1,12 +1,14 @@
 #pragma once
-// Exact closest-point and line-crossing queries on one triangle mesh (CGAL AABB tree), for the
-// validators and the oracle inputs. Built once, then queried from any number of threads.
+// Exact closest-point and line-crossing queries on one triangle mesh (CGAL AABB tree over its
+// non-degenerate triangles; the mesh need not be manifold): the remesher puts vertices back on
+// the surface with it, the validators measure with it. Built once, then queried from any number
+// of threads.
 #include <memory>
 #include <vector>
 
 #include "pipeline/core/mesh.h"
 
-namespace fourd::validate {
+namespace fourd {
 
 struct ClosestPoint {
   Vec3f point = Vec3f::Zero();
@@ -40,4 +42,4 @@ inline Vec3f barycentric_point(const Mesh& mesh, int t, const Vec3f& b) {
          b.z() * mesh.positions[tri[2]];
 }
 
-}  // namespace fourd::validate
+}  // namespace fourd
