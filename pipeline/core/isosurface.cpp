@@ -1,5 +1,6 @@
 #include "pipeline/core/isosurface.h"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <unordered_map>
@@ -131,8 +132,73 @@ class Extractor {
   std::unordered_map<std::pair<std::int64_t, std::int64_t>, int, PairHash> vertices_;
 };
 
+// The grid's trilinear interpolation and its gradient at `p`; false when p's cell lies beyond
+// the grid or holds a NaN sample.
+bool trilinear(const ScalarGrid& grid, const Eigen::Vector3d& p, double& value,
+               Eigen::Vector3d& gradient) {
+  const Eigen::Vector3d g = (p - grid.origin) / grid.voxel;
+  const int x = static_cast<int>(std::floor(g.x())), y = static_cast<int>(std::floor(g.y())),
+            z = static_cast<int>(std::floor(g.z()));
+  if (x < 0 || y < 0 || z < 0 || x + 1 >= grid.nx || y + 1 >= grid.ny || z + 1 >= grid.nz) {
+    return false;
+  }
+  const double tx = g.x() - x, ty = g.y() - y, tz = g.z() - z;
+  std::array<double, 8> v;
+  for (int c = 0; c < 8; ++c) {
+    v[c] = grid.at(x + kCorner[c][0], y + kCorner[c][1], z + kCorner[c][2]);
+    if (std::isnan(v[c])) return false;
+  }
+  // Along x first (corner c = x + 2y + 4z), then y, then z.
+  const double v00 = v[0] + tx * (v[1] - v[0]), v10 = v[2] + tx * (v[3] - v[2]);
+  const double v01 = v[4] + tx * (v[5] - v[4]), v11 = v[6] + tx * (v[7] - v[6]);
+  const double v0 = v00 + ty * (v10 - v00), v1 = v01 + ty * (v11 - v01);
+  value = v0 + tz * (v1 - v0);
+  const double dx00 = v[1] - v[0], dx10 = v[3] - v[2], dx01 = v[5] - v[4], dx11 = v[7] - v[6];
+  const double dx0 = dx00 + ty * (dx10 - dx00), dx1 = dx01 + ty * (dx11 - dx01);
+  gradient = Eigen::Vector3d(dx0 + tz * (dx1 - dx0), (v10 - v00) + tz * ((v11 - v01) - (v10 - v00)),
+                             v1 - v0) /
+             grid.voxel;
+  return true;
+}
+
 }  // namespace
 
 Mesh extract_isosurface(const ScalarGrid& grid, float iso) { return Extractor(grid, iso).run(); }
+
+int project_to_isosurface(Mesh& mesh, const ScalarGrid& grid, float iso, double max_move) {
+  constexpr int kSteps = 8;
+  const double tolerance = 0.1 * grid.voxel;
+  int moved = 0;
+  for (Vec3f& vertex : mesh.positions) {
+    const Eigen::Vector3d start = vertex.cast<double>();
+    Eigen::Vector3d p = start;
+    bool reached = false;
+    for (int step = 0; step <= kSteps; ++step) {
+      double value;
+      Eigen::Vector3d gradient;
+      if (!trilinear(grid, p, value, gradient)) break;
+      const double f = value - iso;
+      if (std::fabs(f) <= 1e-3 * tolerance) {
+        reached = true;
+        break;
+      }
+      if (step == kSteps) {
+        reached = std::fabs(f) / std::max(gradient.norm(), 1e-12) <= tolerance;
+        break;
+      }
+      const double g2 = gradient.squaredNorm();
+      if (!(g2 > 1e-12)) break;
+      Eigen::Vector3d delta = -f / g2 * gradient;
+      if (delta.norm() > grid.voxel) delta *= grid.voxel / delta.norm();
+      p += delta;
+      if ((p - start).norm() > max_move) break;
+    }
+    if (reached && p != start) {
+      vertex = p.cast<float>();
+      ++moved;
+    }
+  }
+  return moved;
+}
 
 }  // namespace fourd

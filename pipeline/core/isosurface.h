@@ -33,4 +33,12 @@ struct ScalarGrid {
 // voxel (as a signed distance field would).
 Mesh extract_isosurface(const ScalarGrid& grid, float iso = 0.0f);
 
+// Moves the vertices of `mesh` onto the level set {value == iso} of the grid's trilinear
+// interpolation, by Newton steps along its gradient (each at most one voxel). A vertex stays
+// where it is when its neighbourhood holds a NaN sample or lies beyond the grid, when the
+// gradient vanishes (the field is flat there, e.g. truncated), when it would move farther than
+// `max_move` [m], or when it does not reach the level set within a tenth of a voxel.
+// Returns the number of vertices moved.
+int project_to_isosurface(Mesh& mesh, const ScalarGrid& grid, float iso, double max_move);
+
 }  // namespace fourd

@@ -15,7 +15,11 @@ struct RemeshOptions {
   // decimate_factor x the target, then isotropic remeshing to edges of one length. Both end
   // with every vertex on the input surface.
   std::string mode = "relax";
-  int iterations = 3;           // relaxation or remeshing iterations (0: decimation only)
+  // Relaxation or remeshing iterations (0: decimation only). Each relaxation evens the
+  // triangles out but moves vertices away from where the decimation put them on curved parts:
+  // on the default sample (final vertices on the fused field) completeness 0.9509 with none,
+  // 0.9503 with one, 0.9495 with three; triangles under 20 degrees 24 %, 9 %, 6 %.
+  int iterations = 1;
   double decimate_factor = 1.5; // mode isotropic: first decimate to this many times the target
 
   template <class V>

@@ -291,6 +291,10 @@ FrameResult reconstruct_frame(const Rig& rig, const FrameInput& input,
   }
   result.mesh = remesh(surface, options.remesh);
   timer.done("remesh");
+  if (options.project_to_field && options.method != "colmap" && options.isosurface_step > 1) {
+    project_to_isosurface(result.mesh, field, 0.0f, options.isosurface_step * field.voxel);
+    timer.done("project_to_field");
+  }
   result.reconstructed = true;
   return result;
 }

@@ -48,7 +48,11 @@ namespace fourd::reconstruct {
 
 // Sweeps guided by the previous pass's fused surface (method stereo).
 struct GuidedPassOptions {
-  int passes = 1;                 // guided sweeps after the hull-guided one (0: none)
+  // Guided sweeps after the hull-guided one (0: none). Each pass's surface guides the next
+  // closer to the true one: on validation's 60 frames of the default sample (three relaxation
+  // steps), completeness 0.9481 with one pass, 0.9495 with two, 0.9500 with three, each pass
+  // ~0.3 s per frame.
+  int passes = 2;
   double filled_weight = 1.0;     // weight of filled-in depths in the guide surface's fusion
   double front_margin = 0.015;    // depth searched in front of the guide surface [m]
   double search_depth = 0.03;     // depth searched behind the guide surface [m]
@@ -82,6 +86,11 @@ struct ReconstructOptions {
   // The visual hull written for validation is the isosurface of every n-th hull sample, not
   // decimated (cheap; at 4 x 6 mm it is within ~1-2 mm of the full-resolution hull).
   int visual_hull_step = 4;
+  // The remeshed vertices put on the fused field's zero level at full resolution (trilinear
+  // interpolation, Newton steps), which the coarser isosurface above only approximates
+  // (methods stereo and visual_hull): on the default sample, completeness 0.9468 -> 0.9481 and
+  // p90 accuracy 8.5 -> 8.3 mm, for 8 ms per frame.
+  bool project_to_field = true;
   VisualHullOptions visual_hull;
   DepthMapOptions depth;
   DepthFillOptions depth_fill;
@@ -102,6 +111,8 @@ struct ReconstructOptions {
       "isosurfaces from every n-th field sample (1: the full grid)", Range{1, 8});
     v("visual_hull_step", visual_hull_step,
       "written visual hull: isosurface of every n-th hull sample", Range{1, 8});
+    v("project_to_field", project_to_field,
+      "put the final vertices on the full-resolution field's zero level");
     v("visual_hull", visual_hull, "visual hull");
     v("depth", depth, "depth maps (hull-guided plane sweep)");
     v("depth_fill", depth_fill, "holes of the depth maps filled before fusion (method stereo)");

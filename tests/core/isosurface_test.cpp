@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <map>
 
 namespace fourd {
@@ -63,6 +65,52 @@ TEST(Isosurface, EmptyWhenAllOutside) {
   g.nx = g.ny = g.nz = 3;
   g.values.assign(27, 1.0f);
   EXPECT_TRUE(extract_isosurface(g).triangles.empty());
+}
+
+TEST(Isosurface, ProjectionPutsACoarseSurfaceOnTheFineLevelSet) {
+  // The isosurface of every 4th sample (a coarse, faceted sphere) put back on the full grid's
+  // zero level: within half a millimetre of the true sphere (2 cm voxels), from up to 5 mm.
+  const Eigen::Vector3d c(0.1, -0.2, 0.3);
+  const ScalarGrid fine = sphere_grid(0.5, 0.02, c);
+  ScalarGrid coarse = fine;
+  coarse.voxel = 4 * fine.voxel;
+  coarse.nx = coarse.ny = coarse.nz = (fine.nx - 1) / 4 + 1;
+  coarse.values.resize(static_cast<std::size_t>(coarse.nx) * coarse.ny * coarse.nz);
+  for (int z = 0; z < coarse.nz; ++z)
+    for (int y = 0; y < coarse.ny; ++y)
+      for (int x = 0; x < coarse.nx; ++x)
+        coarse.values[coarse.index(x, y, z)] = fine.at(4 * x, 4 * y, 4 * z);
+  Mesh m = extract_isosurface(coarse);
+  double worst_before = 0;
+  for (const Vec3f& p : m.positions) {
+    worst_before = std::max(worst_before, std::fabs((p.cast<double>() - c).norm() - 0.5));
+  }
+  ASSERT_GT(worst_before, 0.003);
+  const int moved = project_to_isosurface(m, fine, 0.0f, 4 * fine.voxel);
+  EXPECT_GT(moved, static_cast<int>(0.9 * m.positions.size()));  // the rest already lie on it
+  for (const Vec3f& p : m.positions) EXPECT_NEAR((p.cast<double>() - c).norm(), 0.5, 0.0005);
+  expect_closed_oriented(m);
+}
+
+TEST(Isosurface, ProjectionLeavesVerticesItCannotPlace) {
+  const Eigen::Vector3d c(0, 0, 0);
+  const ScalarGrid grid = sphere_grid(0.5, 0.05, c);
+  Mesh m;
+  m.positions = {Vec3f(0.52f, 0, 0),     // 2 cm outside: moved
+                 Vec3f(0, 0.62f, 0),     // 12 cm outside, farther than the 4 cm allowed
+                 Vec3f(0, 0, 5.0f)};     // beyond the grid
+  ScalarGrid with_nan = grid;
+  EXPECT_EQ(project_to_isosurface(m, grid, 0.0f, 0.04), 1);
+  EXPECT_NEAR(m.positions[0].x(), 0.5f, 0.002f);
+  EXPECT_EQ(m.positions[1], Vec3f(0, 0.62f, 0));
+  EXPECT_EQ(m.positions[2], Vec3f(0, 0, 5.0f));
+  // A NaN sample next to the vertex: left where it is.
+  const Eigen::Vector3d g = (Eigen::Vector3d(0.52, 0, 0) - grid.origin) / grid.voxel;
+  with_nan.values[with_nan.index(static_cast<int>(g.x()), static_cast<int>(g.y()),
+                                 static_cast<int>(g.z()))] = NAN;
+  Mesh n;
+  n.positions = {Vec3f(0.52f, 0, 0)};
+  EXPECT_EQ(project_to_isosurface(n, with_nan, 0.0f, 0.04), 0);
 }
 
 }  // namespace
