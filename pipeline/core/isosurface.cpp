@@ -137,11 +137,12 @@ class Extractor {
 bool trilinear(const ScalarGrid& grid, const Eigen::Vector3d& p, double& value,
                Eigen::Vector3d& gradient) {
   const Eigen::Vector3d g = (p - grid.origin) / grid.voxel;
-  const int x = static_cast<int>(std::floor(g.x())), y = static_cast<int>(std::floor(g.y())),
-            z = static_cast<int>(std::floor(g.z()));
-  if (x < 0 || y < 0 || z < 0 || x + 1 >= grid.nx || y + 1 >= grid.ny || z + 1 >= grid.nz) {
+  // Checked before the conversion to int (a NaN or far-away point must not reach it).
+  if (!(g.x() >= 0 && g.y() >= 0 && g.z() >= 0 && g.x() < grid.nx - 1 && g.y() < grid.ny - 1 &&
+        g.z() < grid.nz - 1)) {
     return false;
   }
+  const int x = static_cast<int>(g.x()), y = static_cast<int>(g.y()), z = static_cast<int>(g.z());
   const double tx = g.x() - x, ty = g.y() - y, tz = g.z() - z;
   std::array<double, 8> v;
   for (int c = 0; c < 8; ++c) {

@@ -98,12 +98,15 @@ TEST(Isosurface, ProjectionLeavesVerticesItCannotPlace) {
   Mesh m;
   m.positions = {Vec3f(0.52f, 0, 0),     // 2 cm outside: moved
                  Vec3f(0, 0.62f, 0),     // 12 cm outside, farther than the 4 cm allowed
-                 Vec3f(0, 0, 5.0f)};     // beyond the grid
+                 Vec3f(0, 0, 5.0f),      // beyond the grid
+                 Vec3f(NAN, 0, 0), Vec3f(1e30f, -1e30f, 0)};
   ScalarGrid with_nan = grid;
   EXPECT_EQ(project_to_isosurface(m, grid, 0.0f, 0.04), 1);
   EXPECT_NEAR(m.positions[0].x(), 0.5f, 0.002f);
   EXPECT_EQ(m.positions[1], Vec3f(0, 0.62f, 0));
   EXPECT_EQ(m.positions[2], Vec3f(0, 0, 5.0f));
+  EXPECT_TRUE(std::isnan(m.positions[3].x()));
+  EXPECT_EQ(m.positions[4], Vec3f(1e30f, -1e30f, 0));
   // A NaN sample next to the vertex: left where it is.
   const Eigen::Vector3d g = (Eigen::Vector3d(0.52, 0, 0) - grid.origin) / grid.voxel;
   with_nan.values[with_nan.index(static_cast<int>(g.x()), static_cast<int>(g.y()),
