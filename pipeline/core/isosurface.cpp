@@ -5,6 +5,8 @@
 #include <cmath>
 #include <unordered_map>
 
+#include <tbb/parallel_for.h>
+
 namespace fourd {
 namespace {
 
@@ -165,6 +167,23 @@ bool trilinear(const ScalarGrid& grid, const Eigen::Vector3d& p, double& value,
 }  // namespace
 
 Mesh extract_isosurface(const ScalarGrid& grid, float iso) { return Extractor(grid, iso).run(); }
+
+ScalarGrid subsample(const ScalarGrid& grid, int step) {
+  if (step <= 1) return grid;
+  ScalarGrid out;
+  out.origin = grid.origin;
+  out.voxel = grid.voxel * step;
+  out.nx = (grid.nx - 1) / step + 1;
+  out.ny = (grid.ny - 1) / step + 1;
+  out.nz = (grid.nz - 1) / step + 1;
+  out.values.resize(static_cast<std::size_t>(out.nx) * out.ny * out.nz);
+  tbb::parallel_for(0, out.nz, [&](int z) {
+    for (int y = 0; y < out.ny; ++y)
+      for (int x = 0; x < out.nx; ++x)
+        out.values[out.index(x, y, z)] = grid.at(x * step, y * step, z * step);
+  });
+  return out;
+}
 
 int project_to_isosurface(Mesh& mesh, const ScalarGrid& grid, float iso, double max_move) {
   constexpr int kSteps = 8;

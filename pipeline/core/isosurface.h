@@ -33,6 +33,9 @@ struct ScalarGrid {
 // voxel (as a signed distance field would).
 Mesh extract_isosurface(const ScalarGrid& grid, float iso = 0.0f);
 
+// Every `step`-th sample of the grid in each direction (the same field on a coarser grid).
+ScalarGrid subsample(const ScalarGrid& grid, int step);
+
 // Moves the vertices of `mesh` onto the level set {value == iso} of the grid's trilinear
 // interpolation, by Newton steps along its gradient (each at most one voxel). A vertex stays
 // where it is when its neighbourhood holds a NaN sample or lies beyond the grid, when the

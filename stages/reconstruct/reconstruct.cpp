@@ -90,24 +90,6 @@ std::size_t boundary_edges(const Mesh& mesh) {
   return n;
 }
 
-// Every `step`-th sample of the grid in each direction (the same field on a coarser grid).
-ScalarGrid subsample(const ScalarGrid& grid, int step) {
-  if (step <= 1) return grid;
-  ScalarGrid out;
-  out.origin = grid.origin;
-  out.voxel = grid.voxel * step;
-  out.nx = (grid.nx - 1) / step + 1;
-  out.ny = (grid.ny - 1) / step + 1;
-  out.nz = (grid.nz - 1) / step + 1;
-  out.values.resize(static_cast<std::size_t>(out.nx) * out.ny * out.nz);
-  tbb::parallel_for(0, out.nz, [&](int z) {
-    for (int y = 0; y < out.ny; ++y)
-      for (int x = 0; x < out.nx; ++x)
-        out.values[out.index(x, y, z)] = grid.at(x * step, y * step, z * step);
-  });
-  return out;
-}
-
 // Drops faces with a vertex more than `tolerance` outside the hull.
 Mesh trim_to_hull(const Mesh& mesh, const VisualHull& hull, double tolerance) {
   std::vector<char> outside(mesh.positions.size());

@@ -72,14 +72,7 @@ TEST(Isosurface, ProjectionPutsACoarseSurfaceOnTheFineLevelSet) {
   // zero level: within half a millimetre of the true sphere (2 cm voxels), from up to 5 mm.
   const Eigen::Vector3d c(0.1, -0.2, 0.3);
   const ScalarGrid fine = sphere_grid(0.5, 0.02, c);
-  ScalarGrid coarse = fine;
-  coarse.voxel = 4 * fine.voxel;
-  coarse.nx = coarse.ny = coarse.nz = (fine.nx - 1) / 4 + 1;
-  coarse.values.resize(static_cast<std::size_t>(coarse.nx) * coarse.ny * coarse.nz);
-  for (int z = 0; z < coarse.nz; ++z)
-    for (int y = 0; y < coarse.ny; ++y)
-      for (int x = 0; x < coarse.nx; ++x)
-        coarse.values[coarse.index(x, y, z)] = fine.at(4 * x, 4 * y, 4 * z);
+  const ScalarGrid coarse = subsample(fine, 4);
   Mesh m = extract_isosurface(coarse);
   double worst_before = 0;
   for (const Vec3f& p : m.positions) {
