@@ -188,6 +188,7 @@ ScalarGrid subsample(const ScalarGrid& grid, int step) {
 int project_to_isosurface(Mesh& mesh, const ScalarGrid& grid, float iso, double max_move) {
   constexpr int kSteps = 8;
   const double tolerance = 0.1 * grid.voxel;
+  const std::vector<Vec3f> before = mesh.positions;
   int moved = 0;
   for (Vec3f& vertex : mesh.positions) {
     const Eigen::Vector3d start = vertex.cast<double>();
@@ -216,6 +217,23 @@ int project_to_isosurface(Mesh& mesh, const ScalarGrid& grid, float iso, double 
     if (reached && p != start) {
       vertex = p.cast<float>();
       ++moved;
+    }
+  }
+  // Each vertex moved on its own: where the level set bends within a triangle's span, the
+  // triangle can fold over. Its vertices go back where they were, until no triangle is folded.
+  auto normal = [&](const std::vector<Vec3f>& v, const Tri& t) {
+    return (v[t[1]] - v[t[0]]).cross(v[t[2]] - v[t[0]]);
+  };
+  for (bool reverted = true; reverted;) {
+    reverted = false;
+    for (const Tri& t : mesh.triangles) {
+      if (normal(before, t).dot(normal(mesh.positions, t)) >= 0) continue;
+      for (int k = 0; k < 3; ++k) {
+        if (mesh.positions[t[k]] == before[t[k]]) continue;
+        mesh.positions[t[k]] = before[t[k]];
+        --moved;
+        reverted = true;
+      }
     }
   }
   return moved;

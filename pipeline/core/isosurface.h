@@ -40,8 +40,9 @@ ScalarGrid subsample(const ScalarGrid& grid, int step);
 // interpolation, by Newton steps along its gradient (each at most one voxel). A vertex stays
 // where it is when its neighbourhood holds a NaN sample or lies beyond the grid, when the
 // gradient vanishes (the field is flat there, e.g. truncated), when it would move farther than
-// `max_move` [m], or when it does not reach the level set within a tenth of a voxel.
-// Returns the number of vertices moved.
+// `max_move` [m], or when it does not reach the level set within a tenth of a voxel. Vertices
+// of a triangle the moves would fold over (its normal turned by more than 90 degrees) stay
+// too. Returns the number of vertices moved.
 int project_to_isosurface(Mesh& mesh, const ScalarGrid& grid, float iso, double max_move);
 
 }  // namespace fourd

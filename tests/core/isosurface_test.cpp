@@ -109,5 +109,35 @@ TEST(Isosurface, ProjectionLeavesVerticesItCannotPlace) {
   EXPECT_EQ(project_to_isosurface(n, with_nan, 0.0f, 0.04), 0);
 }
 
+TEST(Isosurface, ProjectionDoesNotFoldATriangleOver) {
+  // A ridge, z = -2|x|, and a small triangle above its crest facing up: projected on their own,
+  // its two lower vertices cross the crest and swap sides, which would turn the triangle over.
+  ScalarGrid ridge;
+  ridge.voxel = 0.005;
+  ridge.origin = Eigen::Vector3d::Constant(-0.05);
+  ridge.nx = ridge.ny = ridge.nz = 21;
+  ridge.values.resize(21 * 21 * 21);
+  for (int z = 0; z < 21; ++z)
+    for (int y = 0; y < 21; ++y)
+      for (int x = 0; x < 21; ++x) {
+        const Eigen::Vector3d p = ridge.point(x, y, z);
+        ridge.values[ridge.index(x, y, z)] = static_cast<float>(p.z() + 2 * std::fabs(p.x()));
+      }
+  const Vec3f a(-0.005f, 0.0012f, 0.012f), b(0.005f, 0.0012f, 0.012f), c(0, 0.0112f, 0.012f);
+  Mesh points;
+  points.positions = {a, b, c};
+  ASSERT_EQ(project_to_isosurface(points, ridge, 0.0f, 0.05), 3);
+  ASSERT_GT(points.positions[0].x(), points.positions[1].x()) << "the vertices did not swap";
+
+  Mesh triangle = points;
+  triangle.positions = {a, b, c};
+  triangle.triangles = {Tri(0, 1, 2)};
+  const Vec3f before = (b - a).cross(c - a);
+  const int moved = project_to_isosurface(triangle, ridge, 0.0f, 0.05);
+  EXPECT_LT(moved, 3);
+  const std::vector<Vec3f>& p = triangle.positions;
+  EXPECT_GE(before.dot((p[1] - p[0]).cross(p[2] - p[0])), 0.0f);
+}
+
 }  // namespace
 }  // namespace fourd
