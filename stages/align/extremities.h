@@ -13,7 +13,8 @@
 namespace fourd::align {
 
 struct ExtremityOptions {
-  double radius = 0.15;         // a tip is the farthest vertex within this geodesic radius [m]
+  double radius = 0.3;          // a tip is the farthest vertex within this geodesic radius [m]
+                                // (more than a foot's length: a heel is no tip)
   double min_fraction = 0.5;    // ... at least this fraction of the farthest vertex's distance
   int max_count = 6;            // the farthest tips kept
   double tolerance = 0.6;       // matched tips' geodesic distances differ by at most this
