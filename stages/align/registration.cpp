@@ -164,34 +164,79 @@ int nearest_vertex(const std::vector<Vec3f>& positions, const Vec3f& p) {
 // stretched neighbouring surface) - and are matched to the remaining template tips.
 struct TipLandmarks {
   std::vector<Landmark> landmarks;  // the anchors and the missed tips matched
+  std::vector<int> frame_tips;      // the frame vertex of each landmark's point
   bool missed = false;              // a frame tip was missed and matched
+  Mesh frame;                       // the frame's surface
+  std::vector<std::vector<int>> frame_rings;
 };
+
+// Where the limb of a tip attaches to the body: the centre of the surface at `length` (less
+// `band`) of geodesic distance from the tip, over `positions`. A limb's root (hip, shoulder)
+// hardly moves when it swings, so it tells the left limb from the right one when their tips
+// have crossed (a running leg kicked back behind the other).
+Vec3d limb_root(const Mesh& mesh, const std::vector<std::vector<int>>& rings,
+                const std::vector<Vec3f>& positions, int tip, double length, double band) {
+  std::vector<double> dist(mesh.num_vertices(), std::numeric_limits<double>::infinity());
+  std::vector<int> owner(mesh.num_vertices(), -1);
+  Vec3d sum = Vec3d::Zero();
+  int count = 0;
+  for (int v : geodesic_update(mesh, rings, tip, 0, length, dist, owner)) {
+    if (dist[v] >= length - band && dist[v] <= length) {
+      sum += positions[v].cast<double>();
+      ++count;
+    }
+  }
+  return count > 0 ? Vec3d(sum / count) : Vec3d(positions[tip].cast<double>());
+}
 
 TipLandmarks tip_landmarks(const TemplateModel& model, const std::vector<Vec3f>& positions,
                            const SurfaceQuery& target, const RegistrationOptions& options) {
   const Extremities& tips = model.extremities;
   if (tips.vertices.empty()) return {};
-  Mesh frame;
+  TipLandmarks out;
+  Mesh& frame = out.frame;
   frame.positions = target.positions();
   frame.triangles = target.triangles();
+  out.frame_rings = edge_neighbours(frame);
   const int centre = nearest_vertex(frame.positions, positions[tips.centre]);
   const Extremities frame_tips =
-      find_extremities(frame, edge_neighbours(frame), centre, options.extremities);
+      find_extremities(frame, out.frame_rings, centre, options.extremities);
   const SurfaceQuery fitted_query(fitted_mesh(model, positions));
 
-  std::vector<Landmark> landmarks;
+  // The limbs' roots, on the fit and on the frame (without limbs: the tips themselves).
+  auto root_length = [&](double geodesic) { return options.limb_fraction * geodesic; };
+  std::vector<Vec3d> template_root(tips.vertices.size()), frame_root(frame_tips.vertices.size());
+  for (std::size_t i = 0; i < tips.vertices.size(); ++i) {
+    template_root[i] = options.limb_fraction > 0
+                           ? limb_root(model.rest, model.rings, positions, tips.vertices[i],
+                                       root_length(tips.geodesic[i]), options.limb_band)
+                           : Vec3d(positions[tips.vertices[i]].cast<double>());
+  }
+  for (std::size_t j = 0; j < frame_tips.vertices.size(); ++j) {
+    frame_root[j] = options.limb_fraction > 0
+                        ? limb_root(frame, out.frame_rings, frame.positions, frame_tips.vertices[j],
+                                    root_length(frame_tips.geodesic[j]), options.limb_band)
+                        : Vec3d(frame.positions[frame_tips.vertices[j]].cast<double>());
+  }
+
+  std::vector<Landmark>& landmarks = out.landmarks;
+  std::vector<int>& landmark_tips = out.frame_tips;
   std::vector<char> template_used(tips.vertices.size(), 0);
   Extremities missed;
+  std::vector<Vec3d> missed_root;
   std::vector<Vec3d> missed_at;
   for (std::size_t j = 0; j < frame_tips.vertices.size(); ++j) {
     const Vec3f& p = frame.positions[frame_tips.vertices[j]];
     const bool covered =
         fitted_query.closest(p, static_cast<float>(options.coverage_distance)).found;
+    // A covered tip anchors the template tip near it whose limb has its root near the frame
+    // limb's (not the other leg's foot, which the fit may have put there).
     int nearest = -1;
     double nearest_distance = options.extremities.anchor_distance;
     for (std::size_t i = 0; i < tips.vertices.size(); ++i) {
       const double d = (positions[tips.vertices[i]] - p).norm();
-      if (!template_used[i] && d < nearest_distance) {
+      if (!template_used[i] && d < nearest_distance &&
+          (template_root[i] - frame_root[j]).norm() < options.extremities.anchor_distance) {
         nearest = static_cast<int>(i);
         nearest_distance = d;
       }
@@ -199,29 +244,34 @@ TipLandmarks tip_landmarks(const TemplateModel& model, const std::vector<Vec3f>&
     if (covered && nearest >= 0) {
       template_used[nearest] = 1;
       landmarks.push_back({tips.vertices[nearest], p.cast<double>()});
+      landmark_tips.push_back(frame_tips.vertices[j]);
     } else {
       missed.vertices.push_back(frame_tips.vertices[j]);
       missed.geodesic.push_back(frame_tips.geodesic[j]);
       missed_at.push_back(p.cast<double>());
+      missed_root.push_back(frame_root[j]);
     }
   }
-  if (missed.vertices.empty()) return {landmarks, false};
+  if (missed.vertices.empty()) return out;
+  // The missed tips are matched by where their limbs attach, not by where the tips are.
   Extremities free;
-  std::vector<Vec3d> free_at;
+  std::vector<Vec3d> free_root;
   for (std::size_t i = 0; i < tips.vertices.size(); ++i) {
     if (template_used[i]) continue;
     free.vertices.push_back(tips.vertices[i]);
     free.geodesic.push_back(tips.geodesic[i]);
-    free_at.push_back(positions[tips.vertices[i]].cast<double>());
+    free_root.push_back(template_root[i]);
   }
   const std::vector<TipMatch> matches =
-      match_extremities(free, free_at, missed, missed_at, options.extremities);
+      match_extremities(free, free_root, missed, missed_root, options.extremities);
   for (const TipMatch& m : matches) {
     landmarks.push_back({free.vertices[m.template_tip], missed_at[m.frame_tip]});
+    landmark_tips.push_back(missed.vertices[m.frame_tip]);
   }
   log::debug("tips: {} in the frame, {} missed by the fit, {} of them matched; {} landmarks",
              frame_tips.vertices.size(), missed.vertices.size(), matches.size(), landmarks.size());
-  return {landmarks, !matches.empty()};
+  out.missed = !matches.empty();
+  return out;
 }
 
 // ---- The deformation graph ---------------------------------------------------------------
@@ -815,10 +865,12 @@ Eigen::Isometry3d rigid_icp(const std::vector<Vec3f>& points, const std::vector<
 
 namespace {
 
-// One registration from `start`, the landmarks pulling the coarse levels.
+// One registration from `start`, the landmarks pulling the coarse levels. It begins at level
+// `first_level`: the coarse levels' stiff regulariser undoes a start's bends (it pulls the graph
+// towards one rigid motion), so a start that already bends the limbs skips them.
 DeformationState register_pass(const TemplateModel& model, const DeformationState& start,
                                const SurfaceQuery& target, const RegistrationOptions& options,
-                               const std::vector<Landmark>& landmarks) {
+                               const std::vector<Landmark>& landmarks, int first_level = 0) {
   DeformationState state = start;
   std::vector<Vec3f> positions = deform_with_graph(model, state);
   if (options.rigid_iterations > 0) {
@@ -834,7 +886,7 @@ DeformationState register_pass(const TemplateModel& model, const DeformationStat
   Eigen::SimplicialLDLT<SparseMatrix> solver;
   bool analysed = false;
   const int levels = static_cast<int>(options.stiffness.size());
-  for (int level = 0; level < levels; ++level) {
+  for (int level = std::min(first_level, levels - 1); level < levels; ++level) {
     // The matching distance shrinks geometrically from max_distance to final_max_distance.
     const double t = levels > 1 ? static_cast<double>(level) / (levels - 1) : 1.0;
     const double max_distance =
@@ -921,6 +973,102 @@ DeformationState turn_limbs_to_tips(const TemplateModel& model, const Deformatio
   return out;
 }
 
+DeformationState bend_limbs_along_frame(const TemplateModel& model, const DeformationState& start,
+                                        const std::vector<Landmark>& landmarks,
+                                        const std::vector<int>& frame_tips, const Mesh& frame,
+                                        const std::vector<std::vector<int>>& frame_rings,
+                                        double limb_fraction, double band) {
+  const Extremities& tips = model.extremities;
+  const std::vector<Vec3f> at = deform_with_graph(model, start);
+  const int nv = model.rest.num_vertices();
+  const double inf = std::numeric_limits<double>::infinity();
+  DeformationState out = start;
+  std::vector<double> frame_dist(frame.num_vertices(), inf);
+  std::vector<int> frame_owner(frame.num_vertices(), -1);
+  for (std::size_t l = 0; l < landmarks.size() && l < frame_tips.size(); ++l) {
+    const auto tip = std::find(tips.vertices.begin(), tips.vertices.end(), landmarks[l].vertex);
+    if (tip == tips.vertices.end()) continue;
+    const double length = limb_fraction * tips.geodesic[tip - tips.vertices.begin()];
+    const int bands = static_cast<int>(std::ceil(length / band));
+    if (bands < 3) continue;
+    std::vector<double> dist(nv, inf);
+    std::vector<int> owner(nv, -1);
+    const std::vector<int> limb =
+        geodesic_update(model.rest, model.rings, landmarks[l].vertex, 0, length, dist, owner);
+    const std::vector<int> reached = geodesic_update(frame, frame_rings, frame_tips[l], 0, length,
+                                                     frame_dist, frame_owner);
+    // The rings of equal geodesic distance from the tip, on the template and on the frame:
+    // their centres are the limb's axis, whatever the limb's pose.
+    struct Ring {
+      Vec3d centre = Vec3d::Zero();
+      double spread = 0;  // mean distance of its vertices from the centre
+      int count = 0;
+    };
+    auto rings_of = [&](const std::vector<int>& vertices, const std::vector<double>& d,
+                        auto position) {
+      std::vector<Ring> r(bands);
+      for (int v : vertices) {
+        const int b = std::min(bands - 1, static_cast<int>(d[v] / band));
+        r[b].centre += position(v);
+        ++r[b].count;
+      }
+      for (Ring& x : r) {
+        if (x.count > 0) x.centre /= x.count;
+      }
+      for (int v : vertices) {
+        const int b = std::min(bands - 1, static_cast<int>(d[v] / band));
+        r[b].spread += (position(v) - r[b].centre).norm() / r[b].count;
+      }
+      return r;
+    };
+    const std::vector<Ring> t_rings =
+        rings_of(limb, dist, [&](int v) { return Vec3d(at[v].cast<double>()); });
+    const std::vector<Ring> f_rings = rings_of(
+        reached, frame_dist, [&](int v) { return Vec3d(frame.positions[v].cast<double>()); });
+    for (int v : reached) frame_dist[v] = inf;
+    // The limb is followed as far as the frame's rings look like the template's: a ring much
+    // wider on the frame has run into the body (a hand resting on the hip).
+    int valid = 0;
+    while (valid < bands && t_rings[valid].count >= 3 && f_rings[valid].count >= 3 &&
+           f_rings[valid].spread <= 1.5 * t_rings[valid].spread + 0.02) {
+      ++valid;
+    }
+    if (valid < 3) continue;
+    // Per ring: the turn of the limb's axis there and the move of its centre.
+    std::vector<Mat3d> turn(valid);
+    for (int b = 0; b < valid; ++b) {
+      const int lo = std::max(0, b - 2), hi = std::min(valid - 1, b + 2);
+      const Vec3d from = t_rings[hi].centre - t_rings[lo].centre;
+      const Vec3d to = f_rings[hi].centre - f_rings[lo].centre;
+      turn[b] = from.norm() > 1e-6 && to.norm() > 1e-6
+                    ? Eigen::Quaterniond::FromTwoVectors(from, to).toRotationMatrix()
+                    : Mat3d::Identity();
+    }
+    const double followed = valid * band;
+    log::debug("limb of tip {}: followed along the frame over {:.2f} of {:.2f} m", landmarks[l].vertex,
+               followed, length);
+    const DeformationGraph& graph = model.graph;
+    for (std::size_t k = 0; k < graph.node_vertex.size(); ++k) {
+      const double d = dist[graph.node_vertex[k]];
+      if (!(d <= length)) continue;
+      const int b = std::min(valid - 1, static_cast<int>(d / band));
+      // Beyond the followed part the last ring's motion fades out towards the limb's border.
+      const double w = d < followed ? 1.0 : std::clamp((length - d) / (length - followed), 0.0, 1.0);
+      const Mat3d r = Eigen::Quaterniond::Identity()
+                          .slerp(w, Eigen::Quaterniond(turn[b]))
+                          .toRotationMatrix();
+      const Vec3d shift = w * (f_rings[b].centre - t_rings[b].centre);
+      // The node's moved position y = g + t turns about its ring's centre and moves with it.
+      const Vec3d& g = graph.node_position[k];
+      const Vec3d y = g + out.translation[k];
+      out.rotation[k] = r * out.rotation[k];
+      out.translation[k] = r * (y - t_rings[b].centre) + t_rings[b].centre + shift - g;
+    }
+  }
+  out.positions = deform_with_graph(model, out);
+  return out;
+}
+
 DeformationState register_to_surface(const TemplateModel& model, const DeformationState& start,
                                      const SurfaceQuery& target,
                                      const RegistrationOptions& options) {
@@ -938,8 +1086,9 @@ DeformationState register_to_surface(const TemplateModel& model, const Deformati
   };
   std::vector<Candidate> candidates;
   candidates.push_back({std::move(fit), first});
-  auto attempt = [&](const DeformationState& from, const char* what) {
-    DeformationState retry = register_pass(model, from, target, options, tips.landmarks);
+  auto attempt = [&](const DeformationState& from, const char* what, int first_level = 0) {
+    DeformationState retry =
+        register_pass(model, from, target, options, tips.landmarks, first_level);
     const FitStats stats = evaluate_fit(model, retry.positions, target, options);
     log::debug("{}: both-ways rms {:.1f} mm -> {:.1f} mm, stretch {:.3f} -> {:.3f}", what,
                1e3 * two_sided_rms(first), 1e3 * two_sided_rms(stats), first.stretch_rms,
@@ -954,6 +1103,9 @@ DeformationState register_to_surface(const TemplateModel& model, const Deformati
     attempt(turn_limbs_to_tips(model, start, tips.landmarks, options.limb_fraction,
                                options.limb_blend),
             "limbs turned to the tips");
+    attempt(bend_limbs_along_frame(model, start, tips.landmarks, tips.frame_tips, tips.frame,
+                                   tips.frame_rings, options.limb_fraction, options.limb_band),
+            "limbs bent along the frame", options.bent_first_level);
   }
   // A retry must fit clearly closer than the first fit (a tip matched to the wrong limb, a
   // foot to the other foot, can still fit a little closer). Among the fits that are about as

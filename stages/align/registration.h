@@ -17,12 +17,16 @@
 //     errors along the tree.
 // When the fit leaves more than a little of the frame uncovered - a limb moved too far for
 // closest points - the frame's tips (head, hands, feet: extremities of the geodesic distance
-// from the trunk) become landmarks (the missed ones matched to free template tips, the covered
-// ones anchoring theirs) and the registration runs again: from the same start when a tip was
-// missed, and from the start with every landmark's limb first turned as a whole about its joint
-// towards its tip (turn_limbs_to_tips). A retry is kept when it fits clearly closer than the
-// first fit; of the retries about as close as the closest, the least stretched wins (a limb
-// bent at the wrong joint can cover the frame too, but only by stretching the template).
+// from the trunk) become landmarks (the missed ones matched to free template tips by where
+// their limbs attach, so that a left foot is not taken for a right one that crossed it; the
+// covered ones anchoring theirs) and the registration runs again: from the same start when a
+// tip was missed, from the start with every landmark's limb first turned as a whole about its
+// joint towards its tip (turn_limbs_to_tips), and from the start with every landmark's limb
+// bent along the frame's surface (bend_limbs_along_frame; that fit skips the coarse levels,
+// whose stiff regulariser would straighten the bends). A retry is kept when it fits clearly
+// closer than the first fit; of the retries about as close as the closest, the least stretched
+// wins (a limb bent at the wrong joint can cover the frame too, but only by stretching the
+// template).
 // Deformations are always expressed relative to the template at rest, so registering frame
 // after frame along the tree composes nothing but the starting guess.
 #include <Eigen/Core>
@@ -43,7 +47,7 @@ struct RegistrationOptions {
   std::vector<double> stiffness = {8, 4, 1.5, 0.5, 0.15};  // graph regulariser weight per level
   int iterations_per_level = 5;  // Gauss-Newton iterations per level
   double max_distance = 0.25;    // correspondences farther are ignored, first level [m]
-  double final_max_distance = 0.03;  // ... last level and refinement [m]
+  double final_max_distance = 0.06;  // ... last level and refinement [m]
   double normal_angle = 60;      // largest angle between matched normals [deg]
   double robust_scale = 0.01;    // Cauchy scale of the residuals [m]
   double point_to_point = 0.1;   // point-to-point weight relative to point-to-plane
@@ -61,6 +65,8 @@ struct RegistrationOptions {
   double limb_fraction = 0.6;    // a limb: the part geodesically nearer its tip than this x
                                  // the tip's distance from the trunk (0: no articulated retry)
   double limb_blend = 0.05;      // a turned limb's rotation fades in over this [m]
+  double limb_band = 0.04;       // a limb is followed along the frame in rings this wide [m]
+  int bent_first_level = 3;      // the fit from the limbs bent along the frame starts here
   double stretch_tolerance = 1.5;  // retries within this x the closest fit's both-ways rms:
                                    // the least stretched is kept
   ExtremityOptions extremities;
@@ -112,6 +118,14 @@ struct RegistrationOptions {
       Range{0, 1});
     v("limb_blend", limb_blend, "a turned limb's rotation fades in over this geodesic distance [m]",
       Range{0, 10});
+    v("limb_band", limb_band,
+      "a limb is also followed along the frame's surface in rings of equal geodesic distance from "
+      "its tip, this wide [m]: the rings' centres give the limb's bends",
+      Range{1e-3, 1});
+    v("bent_first_level", bent_first_level,
+      "the fit from the limbs bent along the frame begins at this level (0: the first): the "
+      "coarse levels' stiff regulariser would straighten the bends",
+      Range{0, 100});
     v("stretch_tolerance", stretch_tolerance,
       "of the retries that fit within this x the closest one's both-ways rms, the least "
       "stretched is kept",
@@ -196,6 +210,20 @@ struct Landmark {
 DeformationState turn_limbs_to_tips(const TemplateModel& model, const DeformationState& start,
                                     const std::vector<Landmark>& landmarks, double limb_fraction,
                                     double blend);
+
+// The other start of the articulated retry: every limb whose tip is a landmark follows the
+// frame's surface. On the template and on the frame (from `frame_tips`, the frame vertex of each
+// landmark), the rings of equal geodesic distance from the tip, `band` [m] wide, have centres
+// along the limb's axis, wherever it bends (geodesic distance hardly changes when a limb
+// articulates). Every graph node of the limb moves with its ring: turned as the axis turns
+// there, moved as its centre moves. The limb is followed as far as the frame's rings are about
+// as wide as the template's (a wider ring has run into the body); the last ring's motion fades
+// out from there to the limb's border. A knee bent between two frames is bent in the start.
+DeformationState bend_limbs_along_frame(const TemplateModel& model, const DeformationState& start,
+                                        const std::vector<Landmark>& landmarks,
+                                        const std::vector<int>& frame_tips, const Mesh& frame,
+                                        const std::vector<std::vector<int>>& frame_rings,
+                                        double limb_fraction, double band);
 
 // Registers the template, starting from `start` (e.g. the parent frame's deformation moved by
 // a rigid guess), to the target surface.

@@ -224,5 +224,77 @@ TEST(Registration, ALimbIsTurnedAsAWholeTowardsItsTip) {
   EXPECT_EQ(stats.flipped_triangles, 0);
 }
 
+TEST(Registration, ALegBentAtTheKneeIsFollowedAlongTheFrame) {
+  // The template stands; in the frame the right leg is kicked back, the knee bent 100 degrees
+  // (a running stride). Following the rings of equal geodesic distance from the matched toes
+  // bends the template's leg at the knee: its vertices end up near where they are in the frame,
+  // where turning the leg as a whole towards the toe cannot put them.
+  const test::Figure& figure = joined_figure();
+  const Mesh templ = remesh_to_vertex_count(figure.rest, 2000);
+  RegistrationOptions options;
+  const TemplateModel model = build_template_model(templ, options);
+  test::Pose pose = test::rest_pose(figure);
+  pose.rotation[9] = test::rot(15, Eigen::Vector3d::UnitY());
+  pose.rotation[10] = test::rot(100, Eigen::Vector3d::UnitY());
+  const Mesh truth = test::pose_figure(figure, pose);
+  const Mesh frame = test::remesh_fresh(truth, 0.012, {0.0031, 0.0017, 0.0043});
+  const test::SurfaceBinding binding = test::bind_to_surface(templ.positions, figure.rest);
+
+  int toe = -1;  // the template's right toe
+  for (int v : model.extremities.vertices) {
+    if (templ.positions[v].y() < 0 && templ.positions[v].z() < 0.1f) toe = v;
+  }
+  ASSERT_GE(toe, 0);
+  const Vec3f toe_in_frame = test::bound_point(binding, toe, truth);
+  const std::vector<std::vector<int>> frame_rings = edge_neighbours(frame);
+  int centre = 0;
+  for (std::size_t i = 0; i < frame.num_vertices(); ++i) {
+    if ((frame.positions[i] - templ.positions[model.extremities.centre]).norm() <
+        (frame.positions[centre] - templ.positions[model.extremities.centre]).norm()) {
+      centre = static_cast<int>(i);
+    }
+  }
+  const Extremities frame_tips = find_extremities(frame, frame_rings, centre, options.extremities);
+  int frame_toe = -1;
+  for (int v : frame_tips.vertices) {
+    if (frame_toe < 0 || (frame.positions[v] - toe_in_frame).norm() <
+                             (frame.positions[frame_toe] - toe_in_frame).norm()) {
+      frame_toe = v;
+    }
+  }
+  ASSERT_GE(frame_toe, 0);
+  ASSERT_LT((frame.positions[frame_toe] - toe_in_frame).norm(), 0.05);
+  const std::vector<Landmark> landmarks = {{toe, frame.positions[frame_toe].cast<double>()}};
+
+  // The right leg below the hip: its vertices' error before and after.
+  auto leg_rms = [&](const std::vector<Vec3f>& positions) {
+    std::vector<Vec3f> at, expected;
+    for (std::size_t i = 0; i < templ.num_vertices(); ++i) {
+      if (templ.positions[i].y() < -0.03f && templ.positions[i].z() < 0.75f) {
+        at.push_back(positions[i]);
+        expected.push_back(test::bound_point(binding, i, truth));
+      }
+    }
+    return rms_error(at, expected);
+  };
+  const DeformationState rest = rest_state(model);
+  const DeformationState turned =
+      turn_limbs_to_tips(model, rest, landmarks, options.limb_fraction, options.limb_blend);
+  const DeformationState bent = bend_limbs_along_frame(
+      model, rest, landmarks, {frame_toe}, frame, frame_rings, options.limb_fraction,
+      options.limb_band);
+  const double before = leg_rms(rest.positions), after_turn = leg_rms(turned.positions),
+               after_bend = leg_rms(bent.positions);
+  std::cout << "right leg vertices' rms: standing " << before * 1e3 << " mm, turned "
+            << after_turn * 1e3 << " mm, bent along the frame " << after_bend * 1e3 << " mm\n";
+  EXPECT_GT(before, 0.15);
+  EXPECT_LT(after_bend, 0.5 * after_turn);
+  EXPECT_LT(after_bend, 0.08);  // 56 mm: the thigh turned only where the limb fades out
+  for (int v : model.extremities.vertices) {
+    if (v == toe) continue;
+    EXPECT_LT((bent.positions[v] - templ.positions[v]).norm(), 0.01) << "tip " << v << " moved";
+  }
+}
+
 }  // namespace
 }  // namespace fourd::align
