@@ -66,7 +66,7 @@ struct RegistrationOptions {
                                  // the tip's distance from the trunk (0: no articulated retry)
   double limb_blend = 0.05;      // a turned limb's rotation fades in over this [m]
   double limb_band = 0.04;       // a limb is followed along the frame in rings this wide [m]
-  int bent_first_level = 3;      // the fit from the limbs bent along the frame starts here
+  int bent_first_level = 4;      // the fit from the limbs bent along the frame starts here
   double stretch_tolerance = 1.5;  // retries within this x the closest fit's both-ways rms:
                                    // the least stretched is kept
   ExtremityOptions extremities;
