@@ -1044,16 +1044,18 @@ DeformationState bend_limbs_along_frame(const TemplateModel& model, const Deform
                     ? Eigen::Quaterniond::FromTwoVectors(from, to).toRotationMatrix()
                     : Mat3d::Identity();
     }
-    const double followed = valid * band;
-    log::debug("limb of tip {}: followed along the frame over {:.2f} of {:.2f} m", landmarks[l].vertex,
-               followed, length);
+    const double followed = std::min(length, valid * band);
+    log::debug("limb of tip {}: followed along the frame over {:.2f} of {:.2f} m",
+               landmarks[l].vertex, followed, length);
     const DeformationGraph& graph = model.graph;
     for (std::size_t k = 0; k < graph.node_vertex.size(); ++k) {
       const double d = dist[graph.node_vertex[k]];
       if (!(d <= length)) continue;
       const int b = std::min(valid - 1, static_cast<int>(d / band));
       // Beyond the followed part the last ring's motion fades out towards the limb's border.
-      const double w = d < followed ? 1.0 : std::clamp((length - d) / (length - followed), 0.0, 1.0);
+      const double w = d < followed || length <= followed
+                           ? 1.0
+                           : std::clamp((length - d) / (length - followed), 0.0, 1.0);
       const Mat3d r = Eigen::Quaterniond::Identity()
                           .slerp(w, Eigen::Quaterniond(turn[b]))
                           .toRotationMatrix();
