@@ -171,16 +171,14 @@ struct TipLandmarks {
 };
 
 // Where the limb of a tip attaches to the body: the centre of the surface at `length` (less
-// `band`) of geodesic distance from the tip, over `positions`. A limb's root (hip, shoulder)
-// hardly moves when it swings, so it tells the left limb from the right one when their tips
-// have crossed (a running leg kicked back behind the other).
-Vec3d limb_root(const Mesh& mesh, const std::vector<std::vector<int>>& rings,
-                const std::vector<Vec3f>& positions, int tip, double length, double band) {
-  std::vector<double> dist(mesh.num_vertices(), std::numeric_limits<double>::infinity());
-  std::vector<int> owner(mesh.num_vertices(), -1);
+// `band`) of geodesic distance `dist` from the tip, over `positions`. A limb's root (hip,
+// shoulder) hardly moves when it swings, so it tells the left limb from the right one when
+// their tips have crossed (a running leg kicked back behind the other).
+Vec3d limb_root(const std::vector<double>& dist, const std::vector<Vec3f>& positions, int tip,
+                double length, double band) {
   Vec3d sum = Vec3d::Zero();
   int count = 0;
-  for (int v : geodesic_update(mesh, rings, tip, 0, length, dist, owner)) {
+  for (std::size_t v = 0; v < dist.size(); ++v) {
     if (dist[v] >= length - band && dist[v] <= length) {
       sum += positions[v].cast<double>();
       ++count;
@@ -208,14 +206,20 @@ TipLandmarks tip_landmarks(const TemplateModel& model, const std::vector<Vec3f>&
   std::vector<Vec3d> template_root(tips.vertices.size()), frame_root(frame_tips.vertices.size());
   for (std::size_t i = 0; i < tips.vertices.size(); ++i) {
     template_root[i] = options.limb_fraction > 0
-                           ? limb_root(model.rest, model.rings, positions, tips.vertices[i],
+                           ? limb_root(model.tip_distance[i], positions, tips.vertices[i],
                                        root_length(tips.geodesic[i]), options.limb_band)
                            : Vec3d(positions[tips.vertices[i]].cast<double>());
   }
   for (std::size_t j = 0; j < frame_tips.vertices.size(); ++j) {
+    const double length = root_length(frame_tips.geodesic[j]);
+    std::vector<double> dist(frame.num_vertices(), std::numeric_limits<double>::infinity());
+    std::vector<int> owner(frame.num_vertices(), -1);
+    if (options.limb_fraction > 0) {
+      geodesic_update(frame, out.frame_rings, frame_tips.vertices[j], 0, length, dist, owner);
+    }
     frame_root[j] = options.limb_fraction > 0
-                        ? limb_root(frame, out.frame_rings, frame.positions, frame_tips.vertices[j],
-                                    root_length(frame_tips.geodesic[j]), options.limb_band)
+                        ? limb_root(dist, frame.positions, frame_tips.vertices[j], length,
+                                    options.limb_band)
                         : Vec3d(frame.positions[frame_tips.vertices[j]].cast<double>());
   }
 
@@ -769,6 +773,13 @@ TemplateModel build_template_model(const Mesh& template_mesh, const Registration
   model.extremities = find_extremities(model.rest, model.rings,
                                        nearest_vertex(model.rest.positions, centroid),
                                        options.extremities);
+  for (int tip : model.extremities.vertices) {
+    std::vector<double>& dist = model.tip_distance.emplace_back(
+        model.rest.num_vertices(), std::numeric_limits<double>::infinity());
+    std::vector<int> owner(model.rest.num_vertices(), -1);
+    geodesic_update(model.rest, model.rings, tip, 0, std::numeric_limits<double>::infinity(), dist,
+                    owner);
+  }
   return model;
 }
 
@@ -935,10 +946,11 @@ DeformationState turn_limbs_to_tips(const TemplateModel& model, const Deformatio
     const auto tip = std::find(tips.vertices.begin(), tips.vertices.end(), l.vertex);
     if (tip == tips.vertices.end()) continue;
     const double length = limb_fraction * tips.geodesic[tip - tips.vertices.begin()];
-    std::vector<double> dist(nv, std::numeric_limits<double>::infinity());
-    std::vector<int> owner(nv, -1);
-    const std::vector<int> limb =
-        geodesic_update(model.rest, model.rings, l.vertex, 0, length, dist, owner);
+    const std::vector<double>& dist = model.tip_distance[tip - tips.vertices.begin()];
+    std::vector<int> limb;
+    for (int v = 0; v < nv; ++v) {
+      if (dist[v] <= length) limb.push_back(v);
+    }
     Vec3d joint = Vec3d::Zero();
     int border = 0;
     for (int v : limb) {
@@ -991,10 +1003,11 @@ DeformationState bend_limbs_along_frame(const TemplateModel& model, const Deform
     const double length = limb_fraction * tips.geodesic[tip - tips.vertices.begin()];
     const int bands = static_cast<int>(std::ceil(length / band));
     if (bands < 3) continue;
-    std::vector<double> dist(nv, inf);
-    std::vector<int> owner(nv, -1);
-    const std::vector<int> limb =
-        geodesic_update(model.rest, model.rings, landmarks[l].vertex, 0, length, dist, owner);
+    const std::vector<double>& dist = model.tip_distance[tip - tips.vertices.begin()];
+    std::vector<int> limb;
+    for (int v = 0; v < nv; ++v) {
+      if (dist[v] <= length) limb.push_back(v);
+    }
     const std::vector<int> reached = geodesic_update(frame, frame_rings, frame_tips[l], 0, length,
                                                      frame_dist, frame_owner);
     // The rings of equal geodesic distance from the tip, on the template and on the frame:

@@ -153,6 +153,9 @@ struct TemplateModel {
   std::vector<std::vector<double>> ring_weights;  // cotangent weights, aligned with rings
   DeformationGraph graph;
   Extremities extremities;  // its tips, from the vertex nearest its centroid
+  // Per tip: every vertex's geodesic distance from it over the template at rest [m] (a limb is
+  // the part nearer its tip than a length; the same for every frame).
+  std::vector<std::vector<double>> tip_distance;
 };
 
 TemplateModel build_template_model(const Mesh& template_mesh, const RegistrationOptions& options);
