@@ -170,6 +170,15 @@ struct TipLandmarks {
   std::vector<std::vector<int>> frame_rings;
 };
 
+// The vertices whose distance `dist` (from a tip) is at most `length`: the tip's limb.
+std::vector<int> within(const std::vector<double>& dist, double length) {
+  std::vector<int> out;
+  for (std::size_t v = 0; v < dist.size(); ++v) {
+    if (dist[v] <= length) out.push_back(static_cast<int>(v));
+  }
+  return out;
+}
+
 // Where the limb of a tip attaches to the body: the centre of the surface at `length` (less
 // `band`) of geodesic distance `dist` from the tip, over `positions`. A limb's root (hip,
 // shoulder) hardly moves when it swings, so it tells the left limb from the right one when
@@ -211,16 +220,16 @@ TipLandmarks tip_landmarks(const TemplateModel& model, const std::vector<Vec3f>&
                            : Vec3d(positions[tips.vertices[i]].cast<double>());
   }
   for (std::size_t j = 0; j < frame_tips.vertices.size(); ++j) {
+    const int tip = frame_tips.vertices[j];
+    if (options.limb_fraction <= 0) {
+      frame_root[j] = frame.positions[tip].cast<double>();
+      continue;
+    }
     const double length = root_length(frame_tips.geodesic[j]);
     std::vector<double> dist(frame.num_vertices(), std::numeric_limits<double>::infinity());
     std::vector<int> owner(frame.num_vertices(), -1);
-    if (options.limb_fraction > 0) {
-      geodesic_update(frame, out.frame_rings, frame_tips.vertices[j], 0, length, dist, owner);
-    }
-    frame_root[j] = options.limb_fraction > 0
-                        ? limb_root(dist, frame.positions, frame_tips.vertices[j], length,
-                                    options.limb_band)
-                        : Vec3d(frame.positions[frame_tips.vertices[j]].cast<double>());
+    geodesic_update(frame, out.frame_rings, tip, 0, length, dist, owner);
+    frame_root[j] = limb_root(dist, frame.positions, tip, length, options.limb_band);
   }
 
   std::vector<Landmark>& landmarks = out.landmarks;
@@ -940,17 +949,13 @@ DeformationState turn_limbs_to_tips(const TemplateModel& model, const Deformatio
                                     double blend) {
   const Extremities& tips = model.extremities;
   const std::vector<Vec3f> at = deform_with_graph(model, start);
-  const int nv = model.rest.num_vertices();
   DeformationState out = start;
   for (const Landmark& l : landmarks) {
     const auto tip = std::find(tips.vertices.begin(), tips.vertices.end(), l.vertex);
     if (tip == tips.vertices.end()) continue;
     const double length = limb_fraction * tips.geodesic[tip - tips.vertices.begin()];
     const std::vector<double>& dist = model.tip_distance[tip - tips.vertices.begin()];
-    std::vector<int> limb;
-    for (int v = 0; v < nv; ++v) {
-      if (dist[v] <= length) limb.push_back(v);
-    }
+    const std::vector<int> limb = within(dist, length);
     Vec3d joint = Vec3d::Zero();
     int border = 0;
     for (int v : limb) {
@@ -992,7 +997,6 @@ DeformationState bend_limbs_along_frame(const TemplateModel& model, const Deform
                                         double limb_fraction, double band) {
   const Extremities& tips = model.extremities;
   const std::vector<Vec3f> at = deform_with_graph(model, start);
-  const int nv = model.rest.num_vertices();
   const double inf = std::numeric_limits<double>::infinity();
   DeformationState out = start;
   std::vector<double> frame_dist(frame.num_vertices(), inf);
@@ -1004,10 +1008,7 @@ DeformationState bend_limbs_along_frame(const TemplateModel& model, const Deform
     const int bands = static_cast<int>(std::ceil(length / band));
     if (bands < 3) continue;
     const std::vector<double>& dist = model.tip_distance[tip - tips.vertices.begin()];
-    std::vector<int> limb;
-    for (int v = 0; v < nv; ++v) {
-      if (dist[v] <= length) limb.push_back(v);
-    }
+    const std::vector<int> limb = within(dist, length);
     const std::vector<int> reached = geodesic_update(frame, frame_rings, frame_tips[l], 0, length,
                                                      frame_dist, frame_owner);
     // The rings of equal geodesic distance from the tip, on the template and on the frame:
