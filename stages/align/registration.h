@@ -44,7 +44,7 @@ struct RegistrationOptions {
   int graph_nodes = 250;      // deformation graph nodes
   int node_influences = 4;    // nodes blended per vertex
   int rigid_iterations = 10;  // rigid ICP iterations before the non-rigid fit
-  std::vector<double> stiffness = {8, 4, 1.5, 0.5, 0.15};  // graph regulariser weight per level
+  std::vector<double> stiffness = {8, 4, 1.5, 0.5, 0.08};  // graph regulariser weight per level
   int iterations_per_level = 5;  // Gauss-Newton iterations per level
   double max_distance = 0.25;    // correspondences farther are ignored, first level [m]
   double final_max_distance = 0.06;  // ... last level and refinement [m]
@@ -53,7 +53,7 @@ struct RegistrationOptions {
   double point_to_point = 0.1;   // point-to-point weight relative to point-to-plane
   double reverse_weight = 1.0;   // frame-to-template matches, relative to template-to-frame
   int refine_iterations = 6;     // vertex-level ARAP refinement iterations (0: none)
-  double refine_weight = 2.0;    // data weight of the refinement relative to ARAP stiffness
+  double refine_weight = 0.5;    // data weight of the refinement relative to ARAP stiffness
   double coverage_distance = 0.03;  // a frame point farther from the fit is uncovered [m]
   double landmark_weight = 300;  // weight of one matched tip, in template vertices' data terms
                                  // (0: no landmarks)
