@@ -731,9 +731,12 @@ void run_tree_job(const fs::path& in, const fs::path& out, const StageArgs& args
   require_free_space(out, fs::file_size(out / "template.ply") * frames.size(),
                      fmt::format("align's {} frames", frames.size()));
   const TemplateModel model = build_template_model(template_mesh, options.registration);
-  log::info("template: {} vertices, {} triangles, {} graph nodes ({:.1f} s)",
+  const auto creased = std::count_if(model.node_softness.begin(), model.node_softness.end(),
+                                     [](double s) { return s < 0.5; });
+  log::info("template: {} vertices, {} triangles, {} graph nodes ({} in creases, regulariser "
+            "below half) ({:.1f} s)",
             template_mesh.num_vertices(), template_mesh.num_triangles(),
-            model.graph.node_vertex.size(), template_timer.seconds());
+            model.graph.node_vertex.size(), creased, template_timer.seconds());
 
   // 3. The top of the tree.
   const int n = static_cast<int>(plan.usable.size());

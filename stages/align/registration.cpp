@@ -387,6 +387,41 @@ std::vector<std::vector<double>> cotangent_weights(const Mesh& mesh,
   return weights;
 }
 
+// Per vertex, 1 / (1 + H / crease_curvature) where the template is concave with mean curvature
+// H [1/m], 1 elsewhere (and everywhere when crease_curvature is 0). H is estimated over the
+// two-ring: the mean of 2 n.(p_j - p_i) / |p_j - p_i|^2, positive where the neighbours rise
+// above the tangent plane. Concave creases are where parts of the body meet (armpits, crotch)
+// and, in a template that merged them, where skin must stretch when the joint opens.
+std::vector<double> crease_softness(const Mesh& mesh, const std::vector<std::vector<int>>& rings,
+                                    double crease_curvature) {
+  const std::size_t nv = mesh.num_vertices();
+  std::vector<double> softness(nv, 1.0);
+  if (crease_curvature <= 0) return softness;
+  const std::vector<Vec3f> normals = vertex_normals(mesh.positions, mesh.triangles);
+  tbb::parallel_for(std::size_t{0}, nv, [&](std::size_t i) {
+    std::vector<int> near;
+    for (int j : rings[i]) {
+      near.push_back(j);
+      for (int k : rings[j]) near.push_back(k);
+    }
+    std::sort(near.begin(), near.end());
+    near.erase(std::unique(near.begin(), near.end()), near.end());
+    double sum = 0;
+    int count = 0;
+    for (int j : near) {
+      if (j == static_cast<int>(i)) continue;
+      const Vec3d d = (mesh.positions[j] - mesh.positions[i]).cast<double>();
+      const double d2 = d.squaredNorm();
+      if (d2 <= 0) continue;
+      sum += 2.0 * normals[i].cast<double>().dot(d) / d2;
+      ++count;
+    }
+    const double h = count > 0 ? sum / count : 0.0;
+    softness[i] = 1.0 / (1.0 + std::max(h, 0.0) / crease_curvature);
+  });
+  return softness;
+}
+
 // ---- Embedded deformation: Gauss-Newton --------------------------------------------------
 
 // The block pattern of the Gauss-Newton matrix: a 6x6 block per pair of nodes that share a
@@ -622,14 +657,15 @@ bool graph_gauss_newton_step(const TemplateModel& model, const std::vector<Corre
       const Vec3d rd = state->rotation[j] * d;
       const Vec3d r = rd + g.node_position[j] + state->translation[j] - g.node_position[n] -
                       state->translation[n];
+      const double w = stiffness * std::min(model.node_softness[j], model.node_softness[n]);
       Eigen::Matrix<double, 3, 6> jj, jn;
       jj << -skew(rd), Mat3d::Identity();
       jn << Mat3d::Zero(), -Mat3d::Identity();
-      system.add_gradient(static_cast<int>(j), stiffness * jj.transpose() * r);
-      system.add_gradient(n, stiffness * jn.transpose() * r);
-      system.add(static_cast<int>(j), static_cast<int>(j), stiffness * jj.transpose() * jj);
-      system.add(n, n, stiffness * jn.transpose() * jn);
-      system.add(static_cast<int>(j), n, stiffness * jj.transpose() * jn);
+      system.add_gradient(static_cast<int>(j), w * jj.transpose() * r);
+      system.add_gradient(n, w * jn.transpose() * r);
+      system.add(static_cast<int>(j), static_cast<int>(j), w * jj.transpose() * jj);
+      system.add(n, n, w * jn.transpose() * jn);
+      system.add(static_cast<int>(j), n, w * jj.transpose() * jn);
     }
   }
 
@@ -776,6 +812,24 @@ TemplateModel build_template_model(const Mesh& template_mesh, const Registration
   model.rings = vertex_neighbours(model.rest);
   model.ring_weights = cotangent_weights(model.rest, model.rings);
   model.graph = build_graph(model.rest, model.rings, options.graph_nodes, options.node_influences);
+  model.vertex_softness = crease_softness(model.rest, model.rings, options.crease_curvature);
+  for (std::size_t i = 0; i < model.rings.size(); ++i) {
+    for (std::size_t k = 0; k < model.rings[i].size(); ++k) {
+      const double s = std::min(model.vertex_softness[i], model.vertex_softness[model.rings[i][k]]);
+      model.ring_weights[i][k] *= std::max(s, options.crease_refine_floor);
+    }
+  }
+  model.node_softness.resize(model.graph.node_vertex.size());
+  for (std::size_t j = 0; j < model.node_softness.size(); ++j) {
+    model.node_softness[j] = model.vertex_softness[model.graph.node_vertex[j]];
+  }
+  const int k = model.graph.influences;
+  for (std::size_t v = 0; v < model.rest.num_vertices(); ++v) {
+    const int nearest = model.graph.influence_node[v * k];
+    if (nearest >= 0) {
+      model.node_softness[nearest] = std::min(model.node_softness[nearest], model.vertex_softness[v]);
+    }
+  }
   Vec3f centroid = Vec3f::Zero();
   for (const Vec3f& p : model.rest.positions) centroid += p;
   centroid /= static_cast<float>(model.rest.num_vertices());

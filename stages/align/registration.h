@@ -10,7 +10,9 @@
 //     point-to-point, normal-compatible, robustly weighted) matches both ways - each template
 //     vertex to the frame, and frame points to the deformed template, which pulls the template
 //     onto frame surface it has not reached yet (a limb that moved far) - and
-//     as-rigid-as-possible graph terms, with the regulariser relaxed level by level; the sparse Cholesky's ordering and
+//     as-rigid-as-possible graph terms, with the regulariser relaxed level by level and softened
+//     in the template's concave creases (armpits, crotch: where parts of the body meet and skin
+//     stretches as the joint opens); the sparse Cholesky's ordering and
 //     symbolic analysis are computed once and reused by every iteration;
 //  3. a vertex-level as-rigid-as-possible refinement (Sorkine & Alexa 2007) towards the
 //     surface (matched both ways too), regularised against the template's own shape, so detail never accumulates
@@ -67,6 +69,9 @@ struct RegistrationOptions {
   double limb_blend = 0.05;      // a turned limb's rotation fades in over this [m]
   double limb_band = 0.04;       // a limb is followed along the frame in rings this wide [m]
   int bent_first_level = 4;      // the fit from the limbs bent along the frame starts here
+  double crease_curvature = 1;   // regulariser softened to 1 / (1 + H / this) where the
+                                 // template is concave with mean curvature H [1/m] (0: uniform)
+  double crease_refine_floor = 0.25;  // ... but the vertex refinement's to no less than this
   double stretch_tolerance = 1.5;  // retries within this x the closest fit's both-ways rms:
                                    // the least stretched is kept
   ExtremityOptions extremities;
@@ -126,6 +131,15 @@ struct RegistrationOptions {
       "the fit from the limbs bent along the frame begins at this level (0: the first): the "
       "coarse levels' stiff regulariser would straighten the bends",
       Range{0, 100});
+    v("crease_curvature", crease_curvature,
+      "where the template is concave (armpits, crotch: where parts meet and skin stretches as "
+      "a joint opens), the regulariser is softened to 1 / (1 + H / this) of its weight, H the "
+      "mean curvature [1/m] (0: the same everywhere)",
+      Range{0, 1e6});
+    v("crease_refine_floor", crease_refine_floor,
+      "the vertex refinement's regulariser is softened in the creases to no less than this "
+      "(1: not at all); softer, a reconstruction's sharp dimples fold over",
+      Range{0, 1});
     v("stretch_tolerance", stretch_tolerance,
       "of the retries that fit within this x the closest one's both-ways rms, the least "
       "stretched is kept",
@@ -150,12 +164,17 @@ struct DeformationGraph {
 struct TemplateModel {
   Mesh rest;                                      // the template (positions, triangles)
   std::vector<std::vector<int>> rings;            // one-ring of every vertex
-  std::vector<std::vector<double>> ring_weights;  // cotangent weights, aligned with rings
+  std::vector<std::vector<double>> ring_weights;  // cotangent weights x crease softness
   DeformationGraph graph;
   Extremities extremities;  // its tips, from the vertex nearest its centroid
   // Per tip: every vertex's geodesic distance from it over the template at rest [m] (a limb is
   // the part nearer its tip than a length; the same for every frame).
   std::vector<std::vector<double>> tip_distance;
+  // The regulariser's factor in (0, 1]: per vertex (crease_curvature) and per graph node (the
+  // smallest of the vertices it moves most); an edge takes the smaller of its ends' (in the
+  // refinement, at least crease_refine_floor: ring_weights include it).
+  std::vector<double> vertex_softness;
+  std::vector<double> node_softness;
 };
 
 TemplateModel build_template_model(const Mesh& template_mesh, const RegistrationOptions& options);
