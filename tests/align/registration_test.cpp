@@ -104,6 +104,25 @@ const test::Figure& joined_figure() {
   return figure;
 }
 
+// A frame of the joined figure in `pose`, re-meshed with fresh connectivity, and where each
+// template vertex should land on it (its point on the figure at rest, followed).
+struct PosedFrame {
+  Mesh truth, frame;
+  std::vector<Vec3f> expected;
+};
+
+PosedFrame posed_frame(const Mesh& templ, const test::Pose& pose) {
+  const test::Figure& figure = joined_figure();
+  PosedFrame out;
+  out.truth = test::pose_figure(figure, pose);
+  out.frame = test::remesh_fresh(out.truth, 0.012, {0.0031, 0.0017, 0.0043});
+  const test::SurfaceBinding binding = test::bind_to_surface(templ.positions, figure.rest);
+  for (std::size_t i = 0; i < templ.num_vertices(); ++i) {
+    out.expected.push_back(test::bound_point(binding, i, out.truth));
+  }
+  return out;
+}
+
 TEST(Extremities, TheFiguresTipsAreItsHeadHandsAndFeet) {
   const test::Figure& figure = joined_figure();
   const Mesh& mesh = figure.rest;
@@ -155,14 +174,9 @@ TEST(Registration, AnArmRaisedFarIsFollowedByItsTip) {
   const Mesh templ = remesh_to_vertex_count(figure.rest, 2000);
   test::Pose pose = test::rest_pose(figure);
   pose.rotation[4] = test::rot(-90, Eigen::Vector3d::UnitY());
-  const Mesh truth = test::pose_figure(figure, pose);
-  const Mesh frame = test::remesh_fresh(truth, 0.012, {0.0031, 0.0017, 0.0043});
-  const SurfaceQuery target(frame);
-  const test::SurfaceBinding binding = test::bind_to_surface(templ.positions, figure.rest);
-  std::vector<Vec3f> expected;
-  for (std::size_t i = 0; i < templ.num_vertices(); ++i) {
-    expected.push_back(test::bound_point(binding, i, truth));
-  }
+  const PosedFrame posed = posed_frame(templ, pose);
+  const SurfaceQuery target(posed.frame);
+  const std::vector<Vec3f>& expected = posed.expected;
   auto register_with = [&](double landmark_weight) {
     RegistrationOptions options;
     options.landmark_weight = landmark_weight;
@@ -330,16 +344,11 @@ TEST(Registration, AnArmRaisedSidewaysStretchesItsArmpit) {
   // vertices slide towards the armpit); softened in the crease, the stretch stays there.
   const test::Figure& figure = joined_figure();
   const Mesh templ = remesh_to_vertex_count(figure.rest, 2000);
-  const test::SurfaceBinding binding = test::bind_to_surface(templ.positions, figure.rest);
   test::Pose pose = test::rest_pose(figure);
   pose.rotation[4] = test::rot(-60, Eigen::Vector3d::UnitX());
-  const Mesh truth = test::pose_figure(figure, pose);
-  const Mesh frame = test::remesh_fresh(truth, 0.012, {0.0031, 0.0017, 0.0043});
-  const SurfaceQuery target(frame);
-  std::vector<Vec3f> expected;
-  for (std::size_t i = 0; i < templ.num_vertices(); ++i) {
-    expected.push_back(test::bound_point(binding, i, truth));
-  }
+  const PosedFrame posed = posed_frame(templ, pose);
+  const SurfaceQuery target(posed.frame);
+  const std::vector<Vec3f>& expected = posed.expected;
   auto register_with = [&](double crease_curvature) {
     RegistrationOptions options;
     options.crease_curvature = crease_curvature;
