@@ -422,6 +422,28 @@ std::vector<double> crease_softness(const Mesh& mesh, const std::vector<std::vec
   return softness;
 }
 
+// Fills the model's softness (per vertex; per graph node, the smallest of the vertices it is
+// nearest to, its own included) and softens the refinement's ring weights with it, to no less
+// than crease_refine_floor. Needs the rings, their weights and the graph.
+void soften_creases(const RegistrationOptions& options, TemplateModel* model) {
+  model->vertex_softness = crease_softness(model->rest, model->rings, options.crease_curvature);
+  const std::vector<double>& soft = model->vertex_softness;
+  for (std::size_t i = 0; i < model->rings.size(); ++i) {
+    for (std::size_t k = 0; k < model->rings[i].size(); ++k) {
+      const double s = std::min(soft[i], soft[model->rings[i][k]]);
+      model->ring_weights[i][k] *= std::max(s, options.crease_refine_floor);
+    }
+  }
+  const DeformationGraph& g = model->graph;
+  model->node_softness.assign(g.node_vertex.size(), 1.0);
+  for (std::size_t v = 0; v < soft.size(); ++v) {
+    const int nearest = g.influence_node[v * g.influences];
+    if (nearest >= 0) {
+      model->node_softness[nearest] = std::min(model->node_softness[nearest], soft[v]);
+    }
+  }
+}
+
 // ---- Embedded deformation: Gauss-Newton --------------------------------------------------
 
 // The block pattern of the Gauss-Newton matrix: a 6x6 block per pair of nodes that share a
@@ -812,24 +834,7 @@ TemplateModel build_template_model(const Mesh& template_mesh, const Registration
   model.rings = vertex_neighbours(model.rest);
   model.ring_weights = cotangent_weights(model.rest, model.rings);
   model.graph = build_graph(model.rest, model.rings, options.graph_nodes, options.node_influences);
-  model.vertex_softness = crease_softness(model.rest, model.rings, options.crease_curvature);
-  for (std::size_t i = 0; i < model.rings.size(); ++i) {
-    for (std::size_t k = 0; k < model.rings[i].size(); ++k) {
-      const double s = std::min(model.vertex_softness[i], model.vertex_softness[model.rings[i][k]]);
-      model.ring_weights[i][k] *= std::max(s, options.crease_refine_floor);
-    }
-  }
-  model.node_softness.resize(model.graph.node_vertex.size());
-  for (std::size_t j = 0; j < model.node_softness.size(); ++j) {
-    model.node_softness[j] = model.vertex_softness[model.graph.node_vertex[j]];
-  }
-  const int k = model.graph.influences;
-  for (std::size_t v = 0; v < model.rest.num_vertices(); ++v) {
-    const int nearest = model.graph.influence_node[v * k];
-    if (nearest >= 0) {
-      model.node_softness[nearest] = std::min(model.node_softness[nearest], model.vertex_softness[v]);
-    }
-  }
+  soften_creases(options, &model);
   Vec3f centroid = Vec3f::Zero();
   for (const Vec3f& p : model.rest.positions) centroid += p;
   centroid /= static_cast<float>(model.rest.num_vertices());

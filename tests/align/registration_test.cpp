@@ -26,6 +26,21 @@ double rms_error(const std::vector<Vec3f>& a, const std::vector<Vec3f>& b) {
   return std::sqrt(s / a.size());
 }
 
+// The template registered from rest to the target, and how well it fits.
+struct RestFit {
+  std::vector<Vec3f> positions;
+  FitStats stats;
+};
+
+RestFit register_from_rest(const Mesh& templ, const SurfaceQuery& target,
+                           const RegistrationOptions& options) {
+  const TemplateModel model = build_template_model(templ, options);
+  RestFit out;
+  out.positions = register_to_surface(model, rest_state(model), target, options).positions;
+  out.stats = evaluate_fit(model, out.positions, target, options);
+  return out;
+}
+
 const Mesh& figure_template() {
   static const Mesh mesh = remesh_to_vertex_count(test::make_figure().rest, 2000);
   return mesh;
@@ -81,9 +96,8 @@ TEST(Registration, SmoothDeformationOfACapsuleIsRecoveredFromFreshConnectivity) 
 
   RegistrationOptions options;
   const SurfaceQuery target(target_mesh);
-  const TemplateModel model = build_template_model(templ, options);
-  const DeformationState fit = register_to_surface(model, rest_state(model), target, options);
-  const FitStats stats = evaluate_fit(model, fit.positions, target, options);
+  const RestFit fit = register_from_rest(templ, target, options);
+  const FitStats& stats = fit.stats;
   const double rms = rms_error(fit.positions, expected);
   std::cout << "capsule bend: correspondence rms " << rms * 1e3 << " mm, max "
             << max_error(fit.positions, expected) * 1e3 << " mm, surface rms "
@@ -180,10 +194,8 @@ TEST(Registration, AnArmRaisedFarIsFollowedByItsTip) {
   auto register_with = [&](double landmark_weight) {
     RegistrationOptions options;
     options.landmark_weight = landmark_weight;
-    const TemplateModel model = build_template_model(templ, options);
-    const DeformationState fit = register_to_surface(model, rest_state(model), target, options);
-    const FitStats stats = evaluate_fit(model, fit.positions, target, options);
-    const double rms = rms_error(fit.positions, expected);
+    const auto [positions, stats] = register_from_rest(templ, target, options);
+    const double rms = rms_error(positions, expected);
     std::cout << "arm raised 90 degrees, landmark weight " << landmark_weight
               << ": correspondence rms " << rms * 1e3 << " mm, surface rms "
               << stats.surface_rms * 1e3 << " mm, uncovered " << stats.uncovered_fraction * 100
@@ -352,12 +364,11 @@ TEST(Registration, AnArmRaisedSidewaysStretchesItsArmpit) {
   auto register_with = [&](double crease_curvature) {
     RegistrationOptions options;
     options.crease_curvature = crease_curvature;
-    const TemplateModel model = build_template_model(templ, options);
-    const DeformationState fit = register_to_surface(model, rest_state(model), target, options);
-    const double rms = rms_error(fit.positions, expected);
+    const auto [positions, stats] = register_from_rest(templ, target, options);
+    const double rms = rms_error(positions, expected);
     std::cout << "arm raised 60 degrees sideways, crease curvature " << crease_curvature
               << ": correspondence rms " << rms * 1e3 << " mm, surface rms "
-              << evaluate_fit(model, fit.positions, target, options).surface_rms * 1e3 << " mm\n";
+              << stats.surface_rms * 1e3 << " mm\n";
     return rms;
   };
   const double uniform = register_with(0);
