@@ -719,7 +719,7 @@ void run_tree_job(const fs::path& in, const fs::path& out, const StageArgs& args
   Mesh root_mesh = load_frame(frames[root]);
   if (options.handle_voxel > 0) {
     const int before = frames[root].status.handles;  // counted by inspect_frames
-    root_mesh = remove_small_handles(root_mesh, options.handle_voxel);
+    root_mesh = remove_small_handles(root_mesh, options.handle_voxel, options.handle_radius);
     const int after = check_manifold(root_mesh).handles;
     if (after != before) log::info("template: handles of the root frame {} -> {}", before, after);
   }

@@ -31,7 +31,8 @@ namespace fourd::align {
 struct AlignOptions {
   int template_vertices = 3000;   // template vertex count (the paper's 3,000)
   int remesh_iterations = 10;     // isotropic remeshing passes for the template
-  double handle_voxel = 0;        // voxel of the template's handle removal [m] (0: none)
+  double handle_voxel = 0.003;    // voxel of the template's handle removal [m] (0: none)
+  int handle_radius = 1;          // ... its largest closing / opening radius [voxels]
   std::string root;               // "<take>/<frame>" to force the root; empty: most central
   double max_surface_rms = 0.02;  // a fit with a larger vertex-to-surface rms failed [m]
   double max_uncovered_fraction = 0.05;  // ... or leaving more of the frame uncovered
@@ -52,8 +53,12 @@ struct AlignOptions {
     v("remesh_iterations", remesh_iterations, "isotropic remeshing passes", Range{1, 100});
     v("handle_voxel", handle_voxel,
       "voxel of the morphological clean-up that removes the root frame's small handles (tunnels, "
-      "an arm merged with the body) before it becomes the template [m], e.g. 0.005; 0: none",
+      "an arm merged with the body) before it becomes the template [m]; 0: none",
       Range{0, 0.1});
+    v("handle_radius", handle_radius,
+      "largest radius [voxels] of that clean-up's closing and opening (tried from 1 up): the "
+      "larger, the thicker the handles it removes",
+      Range{1, 10});
     v("root", root, "root frame as <take>/<frame>; empty: the most central frame");
     v("max_surface_rms", max_surface_rms, "largest accepted fit rms [m]", Range{1e-4, 10});
     v("max_uncovered_fraction", max_uncovered_fraction,

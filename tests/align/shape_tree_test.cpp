@@ -96,6 +96,10 @@ TEST(MeshTools, SmallHandlesAreRemovedAndLargeOnesKept) {
   int far = 0;
   for (const Vec3f& p : cleaned.positions) far += input.closest(p, 1.0f).distance > 0.002f;
   EXPECT_LT(far, static_cast<int>(cleaned.num_vertices() / 50));
+  // Closed and opened by one voxel at most, only a handle a few voxels thin goes: the 16 mm
+  // tube goes at 5 mm voxels (three across) and stays at 2 mm (eight).
+  EXPECT_EQ(check_manifold(remove_small_handles(mesh, 0.002, 1)).handles, 1);
+  EXPECT_EQ(check_manifold(remove_small_handles(mesh, 0.005, 1)).handles, 0);
 
   // A torus's hole is far wider than the clean-up: the torus is returned as it is.
   auto torus = [](const Eigen::Vector3d& p) {
