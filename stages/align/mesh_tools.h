@@ -54,7 +54,7 @@ Mesh surface_of_solid(const Mesh& mesh, const SolidGrid& solid);
 // cut nothing off) and keeps at least `min_volume` of the input's volume is returned (its
 // largest component); failing that, the one of the fewest handles, or the input itself when
 // no result has fewer handles than it.
-Mesh remove_small_handles(const Mesh& mesh, double voxel, int max_radius = 3,
+Mesh remove_small_handles(const Mesh& mesh, double voxel, int max_radius,
                           double min_volume = 0.98);
 
 // Neighbours of every vertex (its one-ring, in circulation order). Throws InputError if the

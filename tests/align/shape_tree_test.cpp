@@ -88,7 +88,7 @@ TEST(MeshTools, SmallHandlesAreRemovedAndLargeOnesKept) {
   };
   const Mesh mesh = test::isosurface_of(ball_with_loop, {-0.25, -0.25, -0.25}, {0.3, 0.25, 0.25}, 0.005);
   ASSERT_EQ(check_manifold(mesh).handles, 1);
-  const Mesh cleaned = remove_small_handles(mesh, 0.005);
+  const Mesh cleaned = remove_small_handles(mesh, 0.005, 3);
   EXPECT_EQ(check_manifold(cleaned).handles, 0);
   EXPECT_EQ(check_manifold(cleaned).components, 1);
   // The ball itself is the input's surface, to within a fraction of the voxel.
@@ -106,7 +106,7 @@ TEST(MeshTools, SmallHandlesAreRemovedAndLargeOnesKept) {
     return std::hypot(std::hypot(p.x(), p.y()) - 0.3, p.z()) - 0.1;
   };
   const Mesh ring = test::isosurface_of(torus, {-0.5, -0.5, -0.2}, {0.5, 0.5, 0.2}, 0.02);
-  const Mesh kept = remove_small_handles(ring, 0.005);
+  const Mesh kept = remove_small_handles(ring, 0.005, 3);
   EXPECT_EQ(kept.positions, ring.positions);
   EXPECT_EQ(check_manifold(kept).handles, 1);
 }
