@@ -104,4 +104,19 @@ std::vector<TipMatch> match_extremities(const Extremities& templ,
   return matches;
 }
 
+int anchored_tip(const std::vector<Eigen::Vector3d>& template_tips,
+                 const std::vector<Eigen::Vector3d>& template_roots, const std::vector<char>& used,
+                 const Eigen::Vector3d& at, const Eigen::Vector3d& root, double anchor_distance) {
+  int best = -1;
+  double best_root = anchor_distance;
+  for (std::size_t i = 0; i < template_tips.size(); ++i) {
+    const double r = (template_roots[i] - root).norm();
+    if (!used[i] && (template_tips[i] - at).norm() < anchor_distance && r < best_root) {
+      best = static_cast<int>(i);
+      best_root = r;
+    }
+  }
+  return best;
+}
+
 }  // namespace fourd::align

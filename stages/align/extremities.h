@@ -67,4 +67,13 @@ std::vector<TipMatch> match_extremities(const Extremities& templ,
                                         const std::vector<Eigen::Vector3d>& frame_positions,
                                         const ExtremityOptions& options);
 
+// The template tip that a frame tip the fit covers anchors: among the template tips not
+// `used`, at most `anchor_distance` from the frame tip (`at`) and whose limb roots are at most
+// that from the frame limb's root (`root`), the one whose root is nearest. Not the nearest tip:
+// a fit can drag one foot onto the other leg, and the root (hip, shoulder), which hardly moves,
+// still tells whose foot it is. -1 when none qualifies.
+int anchored_tip(const std::vector<Eigen::Vector3d>& template_tips,
+                 const std::vector<Eigen::Vector3d>& template_roots, const std::vector<char>& used,
+                 const Eigen::Vector3d& at, const Eigen::Vector3d& root, double anchor_distance);
+
 }  // namespace fourd::align

@@ -232,6 +232,8 @@ TipLandmarks tip_landmarks(const TemplateModel& model, const std::vector<Vec3f>&
     frame_root[j] = limb_root(dist, frame.positions, tip, length, options.limb_band);
   }
 
+  std::vector<Vec3d> template_at;
+  for (int v : tips.vertices) template_at.push_back(positions[v].cast<double>());
   std::vector<Landmark>& landmarks = out.landmarks;
   std::vector<int>& landmark_tips = out.frame_tips;
   std::vector<char> template_used(tips.vertices.size(), 0);
@@ -242,21 +244,11 @@ TipLandmarks tip_landmarks(const TemplateModel& model, const std::vector<Vec3f>&
     const Vec3f& p = frame.positions[frame_tips.vertices[j]];
     const bool covered =
         fitted_query.closest(p, static_cast<float>(options.coverage_distance)).found;
-    // A covered tip anchors the template tip near it whose limb has its root near the frame
-    // limb's (not the other leg's foot, which the fit may have put there).
-    int nearest = -1;
-    double nearest_distance = options.extremities.anchor_distance;
-    for (std::size_t i = 0; i < tips.vertices.size(); ++i) {
-      const double d = (positions[tips.vertices[i]] - p).norm();
-      if (!template_used[i] && d < nearest_distance &&
-          (template_root[i] - frame_root[j]).norm() < options.extremities.anchor_distance) {
-        nearest = static_cast<int>(i);
-        nearest_distance = d;
-      }
-    }
-    if (covered && nearest >= 0) {
-      template_used[nearest] = 1;
-      landmarks.push_back({tips.vertices[nearest], p.cast<double>()});
+    const int anchor = anchored_tip(template_at, template_root, template_used, p.cast<double>(),
+                                    frame_root[j], options.extremities.anchor_distance);
+    if (covered && anchor >= 0) {
+      template_used[anchor] = 1;
+      landmarks.push_back({tips.vertices[anchor], p.cast<double>()});
       landmark_tips.push_back(frame_tips.vertices[j]);
     } else {
       missed.vertices.push_back(frame_tips.vertices[j]);

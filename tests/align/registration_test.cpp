@@ -181,6 +181,26 @@ TEST(Extremities, MatchingPairsTipsOfCompatibleGeodesicDistanceClosestFirst) {
   EXPECT_EQ(matches[2].frame_tip, 2);
 }
 
+TEST(Extremities, ACoveredTipAnchorsTheTemplateTipOfItsOwnLimb) {
+  // A fit that dragged the right foot onto the left leg: both template feet lie near the frame's
+  // left foot, the right one nearer (2 cm against 6), and the right leg's root was dragged 7 cm
+  // towards the left one. The left foot anchors the left leg's tip, whose root is nearest the
+  // frame leg's root (1 cm), not the nearest tip.
+  const std::vector<Eigen::Vector3d> tips = {{0.14, 0.07, 0.05}, {0.15, 0.11, 0.05},
+                                             {0, 0, 1.7}};  // right foot, left foot, head
+  const std::vector<Eigen::Vector3d> roots = {{0, 0.02, 0.6}, {0, 0.09, 0.6}, {0, 0, 1.45}};
+  const Eigen::Vector3d foot(0.15, 0.05, 0.05), hip(0, 0.1, 0.6);
+  std::vector<char> used(3, 0);
+  EXPECT_EQ(anchored_tip(tips, roots, used, foot, hip, 0.1), 1);
+  // Taken already, the left foot leaves the right one, whose root is near enough.
+  used[1] = 1;
+  EXPECT_EQ(anchored_tip(tips, roots, used, foot, hip, 0.1), 0);
+  // Nothing anchors where no root is that near, however near the tips.
+  EXPECT_EQ(anchored_tip(tips, roots, {0, 0, 0}, foot, Eigen::Vector3d(0, 0.3, 0.6), 0.1), -1);
+  // ... nor where no tip is.
+  EXPECT_EQ(anchored_tip(tips, roots, {0, 0, 0}, Eigen::Vector3d(0.6, 0.1, 0.05), hip, 0.1), -1);
+}
+
 TEST(Registration, AnArmRaisedFarIsFollowedByItsTip) {
   // The template hangs its arms; the frame holds the right arm straight forward. Closest points
   // alone leave the template's arm on the side of the body; the matched hand tips pull it up.
