@@ -128,8 +128,8 @@ expect() {
 }
 
 echo "== bad input is refused before any work"
-expect 4 "has frames 0:15" "$bin/fourd-reconstruct" "$s" --take walk_slow --frames 6:24
-expect 4 "has frames 0:15" "$bin/fourd-segment" "$s" --take walk_slow --frames 20:
+expect 4 "has frames 0:10" "$bin/fourd-reconstruct" "$s" --take walk_slow --frames 6:24
+expect 4 "has frames 0:10" "$bin/fourd-segment" "$s" --take walk_slow --frames 20:
 expect 2 "overlap" "$bin/fourd-segment" "$s" --take walk_slow --frames 0:5,3:8
 expect 2 "empty or negative" "$bin/fourd-reconstruct" "$s" --take walk_slow --frames 5:2
 expect 4 "take 'run' is not in the capture" "$bin/fourd-reconstruct" "$s" --take run --frames 0:1
