@@ -31,7 +31,7 @@ namespace fourd::align {
 struct AlignOptions {
   int template_vertices = 3000;   // template vertex count (the paper's 3,000)
   int remesh_iterations = 10;     // isotropic remeshing passes for the template
-  double handle_voxel = 0.003;    // voxel of the template's handle removal [m] (0: none)
+  double handle_voxel = 0.005;    // voxel of the template's handle removal [m] (0: none)
   int handle_radius = 1;          // ... its largest closing / opening radius [voxels]
   std::string root;               // "<take>/<frame>" to force the root; empty: most central
   double max_surface_rms = 0.02;  // a fit with a larger vertex-to-surface rms failed [m]
