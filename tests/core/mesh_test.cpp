@@ -90,7 +90,7 @@ TEST(Mesh, CheckRejectsBadMeshes) {
   EXPECT_THROW(negative.check("m"), InputError);
 
   Mesh normals = test::make_box();
-  normals.normals.resize(3);
+  normals.normals.assign(3, Vec3f::UnitZ());
   EXPECT_THROW(normals.check("m"), InputError);
 
   Mesh colors = test::make_box();
@@ -98,11 +98,11 @@ TEST(Mesh, CheckRejectsBadMeshes) {
   EXPECT_THROW(colors.check("m"), InputError);
 
   Mesh uvs = test::make_box();
-  uvs.uvs.resize(7);
+  uvs.uvs.assign(7, Vec2f::Zero());
   EXPECT_THROW(uvs.check("m"), InputError);
 
   Mesh corner_uvs = test::make_box();
-  corner_uvs.uvs.resize(3);
+  corner_uvs.uvs.assign(3, Vec2f::Zero());  // (resize would leave them uninitialised)
   corner_uvs.uv_triangles.assign(12, Tri(0, 1, 2));
   EXPECT_NO_THROW(corner_uvs.check("m"));
   corner_uvs.uv_triangles[5][2] = 3;
