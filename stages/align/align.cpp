@@ -136,6 +136,13 @@ void inspect_frames(std::vector<FrameData>& frames, const AlignOptions& options)
   });
 }
 
+// The upper median of `v` (reorders it); 0 when empty.
+double median(std::vector<double>& v) {
+  if (v.empty()) return 0;
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
+
 // Takes of different characters cannot share a template: their volumes give them away.
 void check_one_character(const std::vector<FrameData>& frames, double max_ratio) {
   std::map<std::string, std::vector<double>> volumes;
@@ -145,10 +152,9 @@ void check_one_character(const std::vector<FrameData>& frames, double max_ratio)
   std::string small_take, large_take;
   double small = std::numeric_limits<double>::infinity(), large = 0;
   for (auto& [take, v] : volumes) {
-    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-    const double median = v[v.size() / 2];
-    if (median < small) small = median, small_take = take;
-    if (median > large) large = median, large_take = take;
+    const double m = median(v);
+    if (m < small) small = m, small_take = take;
+    if (m > large) large = m, large_take = take;
   }
   if (volumes.size() > 1 && large > max_ratio * small) {
     throw InputError(fmt::format(
@@ -600,16 +606,10 @@ class TreeRegistration {
   // mesh when the fit passes.
   bool attempt(int k, int p) {
     FrameData& f = plan_.frames[plan_.usable[k]];
-    reg_.tried[k].insert(p);
     reg_.attempted[k] = 1;
     Fit fit;
     try {
-      if (p < 0) {
-        fit = register_frame(model_, rest_state(model_), nullptr, f, 0, options_);
-      } else {
-        fit = register_frame(model_, reg_.fits[p].state, &plan_.frames[plan_.usable[p]].descriptor,
-                             f, plan_.distances.shift(k, p), options_);
-      }
+      fit = fit_from(k, p);
     } catch (const SolverError& e) {
       f.status.error = e.what();
       return false;
@@ -634,6 +634,25 @@ class TreeRegistration {
     return true;
   }
 
+  // Registers aligned frame k again, from aligned frame p; the new fit replaces the one it has
+  // when it passes and leaves a smaller rms. Returns whether it did.
+  bool refit(int k, int p) {
+    Fit fit;
+    try {
+      fit = fit_from(k, p);
+    } catch (const SolverError&) {
+      return false;
+    }
+    if (!fit_failure(fit.stats, options_).empty() ||
+        !(fit.stats.surface_rms < reg_.fits[k].stats.surface_rms)) {
+      return false;
+    }
+    reg_.fits[k] = std::move(fit);
+    reg_.parent_of[k] = p;
+    write_frame(k);
+    return true;
+  }
+
   // Registers the subtrees hanging from `starts` whose nodes belong to job `job`, each from
   // its tree parent, independent subtrees in parallel; a failed frame's subtree is left to
   // re-parenting (not attempted).
@@ -654,6 +673,15 @@ class TreeRegistration {
   }
 
  private:
+  // The fit of database frame k started from database frame p's (-1: the template at rest).
+  Fit fit_from(int k, int p) {
+    reg_.tried[k].insert(p);
+    const FrameData& f = plan_.frames[plan_.usable[k]];
+    if (p < 0) return register_frame(model_, rest_state(model_), nullptr, f, 0, options_);
+    return register_frame(model_, reg_.fits[p].state, &plan_.frames[plan_.usable[p]].descriptor, f,
+                          plan_.distances.shift(k, p), options_);
+  }
+
   const TemplateModel& model_;
   Plan& plan_;
   Registrations& reg_;
@@ -708,10 +736,7 @@ void run_tree_job(const fs::path& in, const fs::path& out, const StageArgs& args
   for (std::size_t k = 0; k < tree.parent.size(); ++k) {
     if (tree.parent[k] >= 0) edges.push_back(tree.edge_cost[k]);
   }
-  if (!edges.empty()) {
-    std::nth_element(edges.begin(), edges.begin() + edges.size() / 2, edges.end());
-    plan.median_edge = edges[edges.size() / 2];
-  }
+  plan.median_edge = median(edges);
   plan.job_of = assign_branches(tree, plan.branches);
 
   // 2. The template.
@@ -789,6 +814,84 @@ void run_branch_job(const fs::path& out, int branch, const AlignOptions& options
   w.save(branch_file(out, branch), kBranchMagic, kJobFileVersion);
 }
 
+// Outlier fits: an aligned frame whose rms is more than outlier_rms_factor x the median of the
+// aligned frames' passed, but is most likely a wrong fit (a leg on the other leg, an arm slid
+// along itself). It is registered again from its neighbours in time and from the most similar
+// other aligned frames (not its own descendants, which started from its fit); the best fit is
+// kept, and the frames registered from a refitted frame are registered again from its new fit,
+// each keeping the better of its two fits.
+void refit_outliers(Plan& plan, Registrations& reg, TreeRegistration& registration,
+                    const AlignOptions& options) {
+  const int n = static_cast<int>(plan.usable.size());
+  auto status = [&](int k) -> FrameStatus& { return plan.frames[plan.usable[k]].status; };
+  std::vector<double> rms;
+  for (int k = 0; k < n; ++k) {
+    if (reg.aligned[k]) rms.push_back(reg.fits[k].stats.surface_rms);
+  }
+  const double limit = options.outlier_rms_factor * median(rms);
+  std::vector<int> outliers;
+  for (int k = 0; k < n; ++k) {
+    if (reg.aligned[k] && reg.fits[k].stats.surface_rms > limit) outliers.push_back(k);
+  }
+  std::sort(outliers.begin(), outliers.end(), [&](int a, int b) {
+    return reg.fits[a].stats.surface_rms > reg.fits[b].stats.surface_rms;
+  });
+  auto descends_from = [&](int p, int k) {
+    for (int a = reg.parent_of[p], steps = 0; a >= 0 && steps <= n; a = reg.parent_of[a], ++steps) {
+      if (a == k) return true;
+    }
+    return false;
+  };
+  for (int k : outliers) {
+    FrameStatus& s = status(k);
+    const double before = reg.fits[k].stats.surface_rms;
+    std::vector<int> candidates;  // neighbours in time first, then the most similar frames
+    std::vector<std::pair<double, int>> similar;
+    for (int p = 0; p < n; ++p) {
+      if (p == k || !reg.aligned[p] || reg.tried[k].count(p) || descends_from(p, k)) continue;
+      const FrameStatus& o = status(p);
+      if (o.take == s.take && std::abs(o.frame - s.frame) == 1) {
+        candidates.push_back(p);
+      } else {
+        similar.push_back({plan.distances.value(k, p), p});
+      }
+    }
+    std::sort(similar.begin(), similar.end());
+    for (int i = 0; i < options.reparent_attempts && i < static_cast<int>(similar.size()); ++i) {
+      candidates.push_back(similar[i].second);
+    }
+    bool improved = false;
+    for (int p : candidates) improved |= registration.refit(k, p);
+    if (!improved) {
+      s.flags.push_back("outlier_fit");
+      log::warn("{}: fit rms {:.1f} mm, over {:g} x the median; no other parent fits better",
+                frame_label(s), 1e3 * before, options.outlier_rms_factor);
+      continue;
+    }
+    s.flags.push_back("refitted");
+    log::info("{}: fit rms {:.1f} mm, over {:g} x the median; refitted from {}: {:.1f} mm",
+              frame_label(s), 1e3 * before, options.outlier_rms_factor,
+              frame_label(status(reg.parent_of[k])), 1e3 * reg.fits[k].stats.surface_rms);
+    // The frames registered from k, and from those in turn, again from the new fits.
+    std::vector<int> redo{k};
+    while (!redo.empty()) {
+      const int p = redo.back();
+      redo.pop_back();
+      for (int c = 0; c < n; ++c) {
+        if (!reg.aligned[c] || reg.parent_of[c] != p || c == k) continue;
+        const double old_rms = reg.fits[c].stats.surface_rms;
+        if (registration.refit(c, p)) {
+          status(c).flags.push_back("refitted");
+          log::info("{}: registered again from the new fit of {}: rms {:.1f} -> {:.1f} mm",
+                    frame_label(status(c)), frame_label(status(p)), 1e3 * old_rms,
+                    1e3 * reg.fits[c].stats.surface_rms);
+          redo.push_back(c);
+        }
+      }
+    }
+  }
+}
+
 // The finish job: merges the branch jobs' results, re-parents and keeps what failed, runs the
 // baseline and writes the reports.
 void run_finish_job(const fs::path& out, const StageArgs& args, const AlignOptions& options) {
@@ -854,6 +957,9 @@ void run_finish_job(const fs::path& out, const StageArgs& args, const AlignOptio
       log::info("{}: re-parented to {}", frame_label(s), frame_label(frames[plan.usable[best_p]].status));
     }
   }
+
+  // 4b. Outlier fits.
+  if (options.outlier_rms_factor > 0) refit_outliers(plan, reg, registration, options);
 
   // 5. Frames whose every attempt failed: by default their best fit is kept and flagged (the
   //    motion stays complete for the stages after this one, and the report and validation show

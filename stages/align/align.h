@@ -11,7 +11,8 @@
 //   4. Frames that cannot be used (empty, non-manifold, unreadable) are excluded; a frame whose
 //      registration fails (large residual or uncovered surface) is re-parented to the most
 //      similar aligned frame; when that fails too, its best fit is kept and flagged (or, with
-//      keep_failed_fits off, it is excluded); all of it in the report.
+//      keep_failed_fits off, it is excluded); all of it in the report. A fit that passed with
+//      an rms far above the median is registered again from other parents, the best kept.
 //   5. Optionally the sequential baseline: the same registration frame to frame in time order.
 //
 // Reads <input>/<take>/<frame>.ply (reconstruct/, or oracle/reconstruct/ in oracle mode) and
@@ -38,6 +39,8 @@ struct AlignOptions {
   double max_uncovered_fraction = 0.05;  // ... or leaving more of the frame uncovered
   double far_edge_factor = 4.0;   // tree edges longer than this x the median are flagged
   int reparent_attempts = 3;      // other parents tried for a frame whose registration failed
+  double outlier_rms_factor = 3;   // a passed fit with more than this x the median rms is
+                                     // registered again from other parents (0: never)
   bool exclude_non_manifold = true;  // non-manifold frames are excluded (else flagged only)
   bool keep_failed_fits = true;      // a frame whose every fit failed keeps its best, flagged
                                      // (else it is excluded and the take has a gap)
@@ -67,6 +70,12 @@ struct AlignOptions {
       Range{1, 1e6});
     v("reparent_attempts", reparent_attempts, "other parents tried after a failed fit",
       Range{0, 100});
+    v("outlier_rms_factor", outlier_rms_factor,
+      "a fit that passed with more than this x the median rms of the aligned frames is "
+      "registered again from its neighbours in time and up to reparent_attempts other similar "
+      "frames, the best fit kept; "
+      "0: never",
+      Range{0, 1000});
     v("exclude_non_manifold", exclude_non_manifold, "exclude non-manifold frames");
     v("keep_failed_fits", keep_failed_fits,
       "keep the best fit of a frame whose registration failed, flagged (else exclude it)");
@@ -84,7 +93,8 @@ struct FrameStatus {
   int frame = 0;
   bool aligned = false;
   // Any of: unreadable, empty, non_manifold, far_from_parent, registration_failed,
-  // reparented, orphaned (its parent failed).
+  // reparented, orphaned (its parent failed), refitted / outlier_fit (its fit's rms was far
+  // above the median: registered again from other parents, better / not).
   std::vector<std::string> flags;
   std::string error;          // why it was excluded (empty when aligned)
   int handles = -1;           // the mesh's genus (ManifoldReport::handles; -1: unknown)

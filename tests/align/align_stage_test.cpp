@@ -1,10 +1,12 @@
 // The align stage as jobs: a tree job, branch jobs and a finish job give the same meshes as the
 // stage run whole, whatever the number of branch jobs; jobs refuse a missing or stale plan.
+// Outlier fits are registered again from other parents.
 #include "stages/align/align.h"
 
 #include <gtest/gtest.h>
 #include <stdlib.h>
 
+#include <algorithm>
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -46,14 +48,16 @@ class AlignSession {
   AlignSession(const AlignSession&) = delete;
   AlignSession& operator=(const AlignSession&) = delete;
 
-  void write_config(const std::string& registration_extra) {
+  // `align_extra`: more lines of stages.align (each "    key: value\n").
+  void write_config(const std::string& registration_extra, const std::string& align_extra = "") {
     std::ofstream out(root_ / "session.yaml", std::ios::trunc);
     out << "name: align_test\nfps: 12\nmotions:\n"
            "  - {name: walk, takes: [walk_a, walk_b], parameter: speed, cyclic: true}\n"
            "stages:\n  align:\n    template_vertices: 600\n    remesh_iterations: 3\n"
            // A coarse template of a coarse figure: accept its fits (this test is about jobs).
            "    max_surface_rms: 0.1\n    max_uncovered_fraction: 0.5\n"
-           "    registration: {graph_nodes: 60, iterations_per_level: 3, refine_iterations: 2, limb_fraction: 0"
+        << align_extra
+        << "    registration: {graph_nodes: 60, iterations_per_level: 3, refine_iterations: 2, limb_fraction: 0"
         << registration_extra << "}\n";
   }
 
@@ -153,6 +157,66 @@ TEST(AlignStage, JobsRefuseAMissingOrStalePlan) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("another plan"), std::string::npos) << e.what();
   }
+}
+
+struct FrameFit {
+  double rms_mm = 0;
+  std::vector<std::string> flags;
+};
+std::map<std::string, FrameFit> frame_fits(const fs::path& align_dir) {
+  const auto report = nlohmann::json::parse(read_file(align_dir / "report.json"));
+  std::map<std::string, FrameFit> out;
+  for (const auto& f : report.at("per_frame")) {
+    out[fmt::format("{}/{:06d}.ply", f.at("take").get<std::string>(), f.at("frame").get<int>())] = {
+        f.at("surface_rms_mm").get<double>(), f.at("flags").get<std::vector<std::string>>()};
+  }
+  return out;
+}
+bool has_flag(const FrameFit& f, const std::string& flag) {
+  return std::find(f.flags.begin(), f.flags.end(), flag) != f.flags.end();
+}
+
+// A fit that passed with an rms far above the median is registered again from other frames:
+// every such frame is refitted or flagged, no frame ends worse than without the refits, and a
+// frame that was not refitted keeps its mesh byte for byte.
+TEST(AlignStage, OutlierFitsAreRegisteredAgainAndNeverEndWorse) {
+  AlignSession plain;
+  plain.write_config("", "    outlier_rms_factor: 0\n");
+  plain.run(StageArgs{});
+  AlignSession refit;
+  // Just above the median: about half the frames count as outliers here.
+  const double factor = 1.05;
+  refit.write_config("", fmt::format("    outlier_rms_factor: {}\n", factor));
+  refit.run(StageArgs{});
+
+  const auto before = frame_fits(plain.out());
+  const auto after = frame_fits(refit.out());
+  ASSERT_EQ(before.size(), 9u);
+  ASSERT_EQ(after.size(), before.size());
+  std::vector<double> rms;
+  for (const auto& [file, f] : before) rms.push_back(f.rms_mm);
+  std::nth_element(rms.begin(), rms.begin() + rms.size() / 2, rms.end());
+  const double limit = factor * rms[rms.size() / 2];
+  const auto plain_meshes = meshes(plain.out());
+  const auto refit_meshes = meshes(refit.out());
+  int outliers = 0, refitted = 0;
+  for (const auto& [file, b] : before) {
+    const FrameFit& a = after.at(file);
+    EXPECT_TRUE(b.flags.empty()) << file;
+    EXPECT_LE(a.rms_mm, b.rms_mm + 1e-9) << file << " ends worse after the refits";
+    if (b.rms_mm > limit) {
+      ++outliers;
+      EXPECT_TRUE(has_flag(a, "refitted") || has_flag(a, "outlier_fit")) << file;
+    }
+    if (has_flag(a, "refitted")) {
+      ++refitted;
+      EXPECT_LT(a.rms_mm, b.rms_mm) << file;
+    } else {
+      EXPECT_EQ(refit_meshes.at(file), plain_meshes.at(file)) << file << " changed, not refitted";
+    }
+  }
+  EXPECT_GT(outliers, 0);
+  EXPECT_GT(refitted, 0) << "no outlier found a better parent; the test no longer exercises refits";
 }
 
 }  // namespace
