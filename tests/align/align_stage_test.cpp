@@ -1,6 +1,7 @@
 // The align stage as jobs: a tree job, branch jobs and a finish job give the same meshes as the
 // stage run whole, whatever the number of branch jobs; jobs refuse a missing or stale plan.
-// Outlier fits are registered again from other parents.
+// Outlier fits are registered again from other parents; unusable frames are excluded, failed
+// fits re-parented or kept flagged, and takes of different characters refused.
 #include "stages/align/align.h"
 
 #include <gtest/gtest.h>
@@ -49,13 +50,15 @@ class AlignSession {
   AlignSession& operator=(const AlignSession&) = delete;
 
   // `align_extra`: more lines of stages.align (each "    key: value\n").
-  void write_config(const std::string& registration_extra, const std::string& align_extra = "") {
+  void write_config(const std::string& registration_extra, const std::string& align_extra = "",
+                    double max_surface_rms = 0.1) {
     std::ofstream out(root_ / "session.yaml", std::ios::trunc);
     out << "name: align_test\nfps: 12\nmotions:\n"
            "  - {name: walk, takes: [walk_a, walk_b], parameter: speed, cyclic: true}\n"
            "stages:\n  align:\n    template_vertices: 600\n    remesh_iterations: 3\n"
-           // A coarse template of a coarse figure: accept its fits (this test is about jobs).
-           "    max_surface_rms: 0.1\n    max_uncovered_fraction: 0.5\n"
+           // A coarse template of a coarse figure: by default accept its fits.
+           "    max_surface_rms: "
+        << max_surface_rms << "\n    max_uncovered_fraction: 0.5\n"
         << align_extra
         << "    registration: {graph_nodes: 60, iterations_per_level: 3, refine_iterations: 2, limb_fraction: 0"
         << registration_extra << "}\n";
@@ -217,6 +220,115 @@ TEST(AlignStage, OutlierFitsAreRegisteredAgainAndNeverEndWorse) {
   }
   EXPECT_GT(outliers, 0);
   EXPECT_GT(refitted, 0) << "no outlier found a better parent; the test no longer exercises refits";
+}
+
+fs::path frame_file(const AlignSession& s, const std::string& take, int frame) {
+  return s.root() / "reconstruct" / take / fmt::format("{:06d}.ply", frame);
+}
+
+// Frames that cannot be used are excluded with the reason in the report, and nothing of theirs
+// is written; the other frames are aligned.
+TEST(AlignStage, UnreadableAndNonManifoldFramesAreExcludedWithTheirReason) {
+  AlignSession s;
+  write_file_atomic(frame_file(s, "walk_a", 2), "ply\nformat binary_little_endian 1.0\nelement ver");
+  Mesh fin = read_ply(frame_file(s, "walk_b", 1));
+  // A third triangle on the first triangle's first edge: that edge is no longer manifold.
+  const Tri first = fin.triangles.front();
+  fin.positions.push_back(fin.positions[first[0]] + Vec3f(0.0f, 0.0f, 0.05f));
+  fin.triangles.push_back({first[0], first[1], static_cast<int>(fin.positions.size() - 1)});
+  write_ply(frame_file(s, "walk_b", 1), fin);
+  s.run(StageArgs{});
+
+  const auto report = nlohmann::json::parse(read_file(s.out() / "report.json"));
+  EXPECT_EQ(report["aligned"].get<int>(), 7);
+  std::map<std::string, nlohmann::json> excluded;
+  for (const auto& e : report["excluded"]) {
+    excluded[fmt::format("{}/{}", e["take"].get<std::string>(), e["frame"].get<int>())] = e;
+  }
+  ASSERT_EQ(excluded.size(), 2u);
+  ASSERT_TRUE(excluded.count("walk_a/2") && excluded.count("walk_b/1"));
+  EXPECT_EQ(excluded["walk_a/2"]["flags"], nlohmann::json::array({"unreadable"}));
+  EXPECT_NE(excluded["walk_a/2"]["reason"].get<std::string>().find("000002.ply"), std::string::npos)
+      << excluded["walk_a/2"]["reason"];
+  EXPECT_EQ(excluded["walk_b/1"]["flags"], nlohmann::json::array({"non_manifold"}));
+  EXPECT_NE(excluded["walk_b/1"]["reason"].get<std::string>().find("1 edges shared by more than two"),
+            std::string::npos)
+      << excluded["walk_b/1"]["reason"];
+  EXPECT_FALSE(fs::exists(s.out() / "walk_a" / "000002.ply"));
+  EXPECT_FALSE(fs::exists(s.out() / "walk_b" / "000001.ply"));
+  EXPECT_TRUE(fs::exists(s.out() / "walk_a" / "000003.ply"));
+}
+
+// Takes whose bodies differ in size are refused: they cannot share one template.
+TEST(AlignStage, TakesOfDifferentCharactersAreRefused) {
+  AlignSession s;
+  for (int f = 0; f < 4; ++f) {
+    Mesh m = read_ply(frame_file(s, "walk_b", f));
+    for (Vec3f& p : m.positions) p *= 1.3f;  // 2.2x the volume
+    write_ply(frame_file(s, "walk_b", f), m);
+  }
+  try {
+    s.run(StageArgs{});
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("'walk_a'"), std::string::npos) << what;
+    EXPECT_NE(what.find("'walk_b'"), std::string::npos) << what;
+    EXPECT_NE(what.find("different characters"), std::string::npos) << what;
+  }
+  EXPECT_FALSE(fs::exists(s.out() / "report.json"));
+}
+
+// A fit over the rms limit fails: the frame is registered from other aligned frames; when one
+// passes it is flagged re-parented, else its best fit is kept and flagged with the error. With
+// keep_failed_fits off such a frame is excluded instead.
+TEST(AlignStage, FailedFitsAreReparentedOrKeptFlagged) {
+  for (const bool keep : {true, false}) {
+    SCOPED_TRACE(keep ? "keep_failed_fits" : "exclude failed fits");
+    AlignSession s;
+    // About the median fit rms of these frames: some fits fail, some pass.
+    const double limit_mm = 2.1;
+    s.write_config("", fmt::format("    outlier_rms_factor: 0\n    keep_failed_fits: {}\n", keep),
+                   limit_mm / 1e3);
+    s.run(StageArgs{});
+    const auto report = nlohmann::json::parse(read_file(s.out() / "report.json"));
+    const auto tree = nlohmann::json::parse(read_file(s.out() / "tree.json"));
+    int failed = 0, reparented = 0, kept = 0;
+    for (const auto& node : tree["nodes"]) {
+      const auto flags = node["flags"].get<std::vector<std::string>>();
+      auto has = [&](const char* f) { return std::find(flags.begin(), flags.end(), f) != flags.end(); };
+      const std::string file = fmt::format("{}/{:06d}.ply", node["take"].get<std::string>(),
+                                           node["frame"].get<int>());
+      if (has("registration_failed")) ++failed;
+      if (has("reparented")) {
+        ++reparented;
+        EXPECT_TRUE(node["aligned"].get<bool>()) << file;
+        EXPECT_LE(node["residual_mm"].get<double>(), limit_mm) << file;
+      }
+      if (has("kept_failed_fit")) {
+        ++kept;
+        EXPECT_TRUE(keep) << file;
+        EXPECT_TRUE(node["aligned"].get<bool>()) << file;
+        EXPECT_GT(node["residual_mm"].get<double>(), limit_mm) << file;
+      }
+      if (node["aligned"].get<bool>()) {
+        EXPECT_TRUE(fs::exists(s.out() / file)) << file;
+        if (!has("kept_failed_fit")) {
+          EXPECT_LE(node["residual_mm"].get<double>(), limit_mm) << file;
+        }
+      } else {
+        EXPECT_FALSE(fs::exists(s.out() / file)) << file;
+        EXPECT_FALSE(keep) << file << " was excluded though failed fits are kept";
+      }
+    }
+    EXPECT_GT(failed, 0) << "no fit failed; the test no longer exercises the failure paths";
+    EXPECT_GT(reparented, 0) << "no failed frame was re-parented; the test no longer exercises it";
+    EXPECT_EQ(report["aligned"].get<int>() + static_cast<int>(report["excluded"].size()), 9);
+    if (keep) {
+      EXPECT_EQ(report["flagged"].get<int>(), kept);
+      EXPECT_EQ(report["aligned"].get<int>(), 9);
+    }
+  }
 }
 
 }  // namespace
