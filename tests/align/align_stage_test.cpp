@@ -38,7 +38,7 @@ class AlignSession {
       for (std::size_t f = 0; f < phases.size(); ++f) {
         const Mesh posed = test::pose_figure(figure, test::walk_pose(figure, phases[f], 0.05 * f));
         const Mesh frame = test::remesh_fresh(posed, 0.02, {0.003 * f, 0.002, 0.001});
-        write_ply(root_ / "reconstruct" / take / fmt::format("{:06d}.ply", f), frame);
+        write_ply(frame_file(take, static_cast<int>(f)), frame);
       }
     }
   }
@@ -65,6 +65,9 @@ class AlignSession {
   }
 
   const fs::path& root() const { return root_; }
+  fs::path frame_file(const std::string& take, int frame) const {
+    return root_ / "reconstruct" / take / fmt::format("{:06d}.ply", frame);
+  }
   fs::path out() const { return root_ / "align"; }
 
   void run(StageArgs args) const {
@@ -175,8 +178,8 @@ std::map<std::string, FrameFit> frame_fits(const fs::path& align_dir) {
   }
   return out;
 }
-bool has_flag(const FrameFit& f, const std::string& flag) {
-  return std::find(f.flags.begin(), f.flags.end(), flag) != f.flags.end();
+bool has_flag(const std::vector<std::string>& flags, const std::string& flag) {
+  return std::find(flags.begin(), flags.end(), flag) != flags.end();
 }
 
 // A fit that passed with an rms far above the median is registered again from other frames:
@@ -210,9 +213,9 @@ TEST(AlignStage, OutlierFitsAreRegisteredAgainAndNeverEndWorse) {
     EXPECT_LE(a.rms_mm, b.rms_mm + 1e-9) << file << " ends worse after the refits";
     if (b.rms_mm > limit) {
       ++outliers;
-      EXPECT_TRUE(has_flag(a, "refitted") || has_flag(a, "outlier_fit")) << file;
+      EXPECT_TRUE(has_flag(a.flags, "refitted") || has_flag(a.flags, "outlier_fit")) << file;
     }
-    if (has_flag(a, "refitted")) {
+    if (has_flag(a.flags, "refitted")) {
       ++refitted;
       EXPECT_LT(a.rms_mm, b.rms_mm) << file;
     } else {
@@ -223,21 +226,17 @@ TEST(AlignStage, OutlierFitsAreRegisteredAgainAndNeverEndWorse) {
   EXPECT_GT(refitted, 0) << "no outlier found a better parent; the test no longer exercises refits";
 }
 
-fs::path frame_file(const AlignSession& s, const std::string& take, int frame) {
-  return s.root() / "reconstruct" / take / fmt::format("{:06d}.ply", frame);
-}
-
 // Frames that cannot be used are excluded with the reason in the report, and nothing of theirs
 // is written; the other frames are aligned.
 TEST(AlignStage, UnreadableAndNonManifoldFramesAreExcludedWithTheirReason) {
   AlignSession s;
-  write_file_atomic(frame_file(s, "walk_a", 2), "ply\nformat binary_little_endian 1.0\nelement ver");
-  Mesh fin = read_ply(frame_file(s, "walk_b", 1));
+  write_file_atomic(s.frame_file("walk_a", 2), "ply\nformat binary_little_endian 1.0\nelement ver");
+  Mesh fin = read_ply(s.frame_file("walk_b", 1));
   // A third triangle on the first triangle's first edge: that edge is no longer manifold.
   const Tri first = fin.triangles.front();
   fin.positions.push_back(fin.positions[first[0]] + Vec3f(0.0f, 0.0f, 0.05f));
   fin.triangles.push_back({first[0], first[1], static_cast<int>(fin.positions.size() - 1)});
-  write_ply(frame_file(s, "walk_b", 1), fin);
+  write_ply(s.frame_file("walk_b", 1), fin);
   s.run(StageArgs{});
 
   const auto report = nlohmann::json::parse(read_file(s.out() / "report.json"));
@@ -264,9 +263,9 @@ TEST(AlignStage, UnreadableAndNonManifoldFramesAreExcludedWithTheirReason) {
 TEST(AlignStage, TakesOfDifferentCharactersAreRefused) {
   AlignSession s;
   for (int f = 0; f < 4; ++f) {
-    Mesh m = read_ply(frame_file(s, "walk_b", f));
+    Mesh m = read_ply(s.frame_file("walk_b", f));
     for (Vec3f& p : m.positions) p *= 1.3f;  // 2.2x the volume
-    write_ply(frame_file(s, "walk_b", f), m);
+    write_ply(s.frame_file("walk_b", f), m);
   }
   try {
     s.run(StageArgs{});
@@ -301,7 +300,7 @@ TEST(AlignStage, FailedFitsAreReparentedOrKeptFlagged) {
     int failed = 0, reparented = 0, kept = 0;
     for (const auto& node : tree["nodes"]) {
       const auto flags = node["flags"].get<std::vector<std::string>>();
-      auto has = [&](const char* f) { return std::find(flags.begin(), flags.end(), f) != flags.end(); };
+      auto has = [&](const char* f) { return has_flag(flags, f); };
       const std::string file = fmt::format("{}/{:06d}.ply", node["take"].get<std::string>(),
                                            node["frame"].get<int>());
       if (has("registration_failed")) ++failed;
