@@ -725,12 +725,17 @@ void run_tree_job(const fs::path& in, const fs::path& out, const StageArgs& args
   for (int i : plan.usable) descriptors.push_back(frames[i].descriptor);
   log::Timer tree_timer;
   plan.distances = pairwise_shape_distances(descriptors, options.descriptor);
-  const int forced_root = options.root.empty() ? -1 : find_root(frames, plan.usable, options.root);
-  plan.tree = minimum_spanning_tree(plan.distances.value, forced_root);
+  std::vector<int> handles;
+  for (int i : plan.usable) handles.push_back(frames[i].status.handles);
+  const int tree_root = options.root.empty()
+                            ? central_frame(plan.distances.value, handles, options.root_tolerance)
+                            : find_root(frames, plan.usable, options.root);
+  plan.tree = minimum_spanning_tree(plan.distances.value, tree_root);
   const ShapeTree& tree = plan.tree;
   const int root = plan.usable[tree.root];
-  log::info("shape tree over {} frames in {:.1f} s: root {}, depth {}", plan.usable.size(),
-            tree_timer.seconds(), frame_label(frames[root].status),
+  log::info("shape tree over {} frames in {:.1f} s: root {} ({}, {} handles), depth {}",
+            plan.usable.size(), tree_timer.seconds(), frame_label(frames[root].status),
+            options.root.empty() ? "most central" : "chosen", frames[root].status.handles,
             *std::max_element(tree.depth.begin(), tree.depth.end()));
   std::vector<double> edges;
   for (std::size_t k = 0; k < tree.parent.size(); ++k) {

@@ -35,6 +35,8 @@ struct AlignOptions {
   double handle_voxel = 0.005;    // voxel of the template's handle removal [m] (0: none)
   int handle_radius = 1;          // ... its largest closing / opening radius [voxels]
   std::string root;               // "<take>/<frame>" to force the root; empty: most central
+  double root_tolerance = 0.02;   // frames this near the most central one: the one with the
+                                  // fewest handles is the root
   double max_surface_rms = 0.02;  // a fit with a larger vertex-to-surface rms failed [m]
   double max_uncovered_fraction = 0.05;  // ... or leaving more of the frame uncovered
   double far_edge_factor = 4.0;   // tree edges longer than this x the median are flagged
@@ -62,7 +64,14 @@ struct AlignOptions {
       "largest radius [voxels] of that clean-up's closing and opening (tried from 1 up): the "
       "larger, the thicker the handles it removes",
       Range{1, 10});
-    v("root", root, "root frame as <take>/<frame>; empty: the most central frame");
+    v("root", root,
+      "root frame as <take>/<frame>; empty: the most central frame (least summed shape distance "
+      "to all frames), the template's");
+    v("root_tolerance", root_tolerance,
+      "of the frames whose summed shape distance to all frames is within this fraction of the "
+      "least, the one whose surface has the fewest handles is the root (an arm merged into the "
+      "body makes a poorer template)",
+      Range{0, 10});
     v("max_surface_rms", max_surface_rms, "largest accepted fit rms [m]", Range{1e-4, 10});
     v("max_uncovered_fraction", max_uncovered_fraction,
       "largest accepted fraction of the frame left uncovered", Range{0, 1});

@@ -1,6 +1,7 @@
 #include "stages/align/shape_tree.h"
 
 #include <limits>
+#include <utility>
 #include <queue>
 
 #include "pipeline/core/error.h"
@@ -17,26 +18,6 @@ std::vector<std::vector<int>> adjacency(const std::vector<int>& parent) {
     }
   }
   return adj;
-}
-
-// Sum of tree-path distances from `source` to every node.
-double path_sum(const std::vector<std::vector<int>>& adj, const Eigen::MatrixXd& distance,
-                int source) {
-  std::vector<double> dist(adj.size(), -1);
-  std::vector<int> stack{source};
-  dist[source] = 0;
-  double sum = 0;
-  while (!stack.empty()) {
-    int u = stack.back();
-    stack.pop_back();
-    sum += dist[u];
-    for (int v : adj[u]) {
-      if (dist[v] >= 0) continue;
-      dist[v] = dist[u] + distance(u, v);
-      stack.push_back(v);
-    }
-  }
-  return sum;
 }
 
 }  // namespace
@@ -72,6 +53,23 @@ ShapeTree orient_tree(const std::vector<int>& parent, const Eigen::MatrixXd& dis
   return tree;
 }
 
+int central_frame(const Eigen::MatrixXd& distance, const std::vector<int>& handles,
+                  double tolerance) {
+  const Eigen::Index n = distance.rows();
+  if (n == 0) throw InputError("shape tree: no frames");
+  if (!handles.empty() && static_cast<Eigen::Index>(handles.size()) != n) {
+    throw InputError("shape tree: one handle count per frame expected");
+  }
+  const Eigen::VectorXd sums = distance.rowwise().sum();
+  const double limit = sums.minCoeff() * (1 + tolerance);
+  const auto rank = [&](int k) { return std::pair(handles.empty() ? 0 : handles[k], sums[k]); };
+  int best = -1;
+  for (int k = 0; k < n; ++k) {
+    if (sums[k] <= limit && (best < 0 || rank(k) < rank(best))) best = k;
+  }
+  return best;
+}
+
 ShapeTree minimum_spanning_tree(const Eigen::MatrixXd& distance, int root) {
   const int n = static_cast<int>(distance.rows());
   if (n == 0) throw InputError("shape tree: no frames");
@@ -94,17 +92,7 @@ ShapeTree minimum_spanning_tree(const Eigen::MatrixXd& distance, int root) {
       }
     }
   }
-  if (root < 0) {
-    const auto adj = adjacency(parent);
-    double best_sum = std::numeric_limits<double>::infinity();
-    for (int v = 0; v < n; ++v) {
-      double s = path_sum(adj, distance, v);
-      if (s < best_sum) {
-        best_sum = s;
-        root = v;
-      }
-    }
-  }
+  if (root < 0) root = central_frame(distance);
   return orient_tree(parent, distance, root);
 }
 

@@ -17,8 +17,16 @@ struct ShapeTree {
   std::vector<int> order;
 };
 
+// The most central frame: the least sum of shape distances to all frames (the medoid). A fit is
+// expressed relative to the template at rest, so its error grows with the frame's shape
+// distance from the root, whatever the path along the tree. Among the frames within
+// `tolerance` (a fraction) of the least sum, the one with the fewest `handles` (when given, one
+// per frame): a reconstruction with an arm merged into the body makes a poorer template.
+int central_frame(const Eigen::MatrixXd& distance, const std::vector<int>& handles = {},
+                  double tolerance = 0);
+
 // Prim's algorithm on the dense symmetric matrix `distance` (N x N). With root < 0, the root
-// is the node with the smallest sum of tree-path distances to all others (the tree's median).
+// is central_frame(distance).
 ShapeTree minimum_spanning_tree(const Eigen::MatrixXd& distance, int root = -1);
 
 // Re-roots an undirected tree given by parent links (any root) at `root`.

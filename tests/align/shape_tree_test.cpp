@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include "pipeline/core/error.h"
 #include "stages/align/mesh_tools.h"
 #include "stages/align/shape_descriptor.h"
 #include "stages/align/surface_query.h"
@@ -37,7 +38,7 @@ TEST(ShapeTree, TwoClearlyDifferentPosesFormTwoBranches) {
 }
 
 TEST(ShapeTree, RootIsTheMostCentralFrameUnlessOneIsForced) {
-  // Five frames on a line at 0, 1, 2, 3, 4: the tree is the chain and its median is frame 2.
+  // Five frames on a line at 0, 1, 2, 3, 4: the tree is the chain and its medoid is frame 2.
   Eigen::MatrixXd distance(5, 5);
   for (int i = 0; i < 5; ++i) {
     for (int j = 0; j < 5; ++j) distance(i, j) = std::abs(i - j);
@@ -50,6 +51,24 @@ TEST(ShapeTree, RootIsTheMostCentralFrameUnlessOneIsForced) {
   EXPECT_EQ(forced.root, 4);
   EXPECT_EQ(forced.parent, (std::vector<int>{1, 2, 3, 4, -1}));
   EXPECT_EQ(forced.order, (std::vector<int>{4, 3, 2, 1, 0}));
+}
+
+TEST(ShapeTree, CentralFrameIsTheMedoidOrANearOneWithFewerHandles) {
+  // Frames on a line at 0, 1, 2, 2.1, 4: distance sums 9.1, 6.1, 5.1, 5.2, 10.9.
+  const std::vector<double> at = {0, 1, 2, 2.1, 4};
+  Eigen::MatrixXd distance(5, 5);
+  for (int i = 0; i < 5; ++i) {
+    for (int j = 0; j < 5; ++j) distance(i, j) = std::abs(at[i] - at[j]);
+  }
+  EXPECT_EQ(central_frame(distance), 2);
+  // Frame 3's sum is within 2 % of frame 2's: with fewer handles it is the root.
+  EXPECT_EQ(central_frame(distance, {0, 0, 3, 1, 0}, 0.02), 3);
+  // ... but not with a tolerance of 1 %, nor with as many handles.
+  EXPECT_EQ(central_frame(distance, {0, 0, 3, 1, 0}, 0.01), 2);
+  EXPECT_EQ(central_frame(distance, {0, 0, 1, 1, 0}, 0.02), 2);
+  // Frames 0 and 1 have no handles but are far from central.
+  EXPECT_EQ(central_frame(distance, {0, 0, 3, 3, 0}, 0.02), 2);
+  EXPECT_THROW(central_frame(distance, {0, 0}, 0.02), InputError);
 }
 
 TEST(MeshTools, HandlesCountTheGenusOfAClosedMesh) {
