@@ -1,8 +1,8 @@
 #include "stages/align/shape_tree.h"
 
 #include <limits>
-#include <utility>
 #include <queue>
+#include <utility>
 
 #include "pipeline/core/error.h"
 

@@ -12,6 +12,16 @@
 namespace fourd::align {
 namespace {
 
+// Frames on a line at `at`: their distances are the differences.
+Eigen::MatrixXd line_distances(const std::vector<double>& at) {
+  const int n = static_cast<int>(at.size());
+  Eigen::MatrixXd distance(n, n);
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) distance(i, j) = std::abs(at[i] - at[j]);
+  }
+  return distance;
+}
+
 TEST(ShapeTree, TwoClearlyDifferentPosesFormTwoBranches) {
   // Three frames of a walk near one phase and three of the arms raised sideways, given in
   // alternating order: the tree must join each group within itself and cross between the
@@ -39,10 +49,7 @@ TEST(ShapeTree, TwoClearlyDifferentPosesFormTwoBranches) {
 
 TEST(ShapeTree, RootIsTheMostCentralFrameUnlessOneIsForced) {
   // Five frames on a line at 0, 1, 2, 3, 4: the tree is the chain and its medoid is frame 2.
-  Eigen::MatrixXd distance(5, 5);
-  for (int i = 0; i < 5; ++i) {
-    for (int j = 0; j < 5; ++j) distance(i, j) = std::abs(i - j);
-  }
+  const Eigen::MatrixXd distance = line_distances({0, 1, 2, 3, 4});
   const ShapeTree tree = minimum_spanning_tree(distance);
   EXPECT_EQ(tree.root, 2);
   EXPECT_EQ(tree.parent, (std::vector<int>{1, 2, -1, 2, 3}));
@@ -55,11 +62,7 @@ TEST(ShapeTree, RootIsTheMostCentralFrameUnlessOneIsForced) {
 
 TEST(ShapeTree, CentralFrameIsTheMedoidOrANearOneWithFewerHandles) {
   // Frames on a line at 0, 1, 2, 2.1, 4: distance sums 9.1, 6.1, 5.1, 5.2, 10.9.
-  const std::vector<double> at = {0, 1, 2, 2.1, 4};
-  Eigen::MatrixXd distance(5, 5);
-  for (int i = 0; i < 5; ++i) {
-    for (int j = 0; j < 5; ++j) distance(i, j) = std::abs(at[i] - at[j]);
-  }
+  const Eigen::MatrixXd distance = line_distances({0, 1, 2, 2.1, 4});
   EXPECT_EQ(central_frame(distance), 2);
   // Frame 3's sum is within 2 % of frame 2's: with fewer handles it is the root.
   EXPECT_EQ(central_frame(distance, {0, 0, 3, 1, 0}, 0.02), 3);
