@@ -988,12 +988,22 @@ DeformationState register_pass(const TemplateModel& model, const DeformationStat
   return state;
 }
 
-// Both-ways rms distance between the fitted template and the frame.
+}  // namespace
+
 double two_sided_rms(const FitStats& s) {
   return std::sqrt(s.surface_rms * s.surface_rms + s.reverse_rms * s.reverse_rms);
 }
 
-}  // namespace
+std::size_t least_stretched_close_fit(const std::vector<FitStats>& fits, double stretch_tolerance) {
+  double closest = std::numeric_limits<double>::infinity();
+  for (const FitStats& f : fits) closest = std::min(closest, two_sided_rms(f));
+  std::size_t chosen = fits.size();
+  for (std::size_t i = 0; i < fits.size(); ++i) {
+    if (two_sided_rms(fits[i]) > stretch_tolerance * closest) continue;
+    if (chosen == fits.size() || fits[i].stretch_rms < fits[chosen].stretch_rms) chosen = i;
+  }
+  return chosen;
+}
 
 DeformationState turn_limbs_to_tips(const TemplateModel& model, const DeformationState& start,
                                     const std::vector<Landmark>& landmarks, double limb_fraction,
@@ -1175,23 +1185,19 @@ DeformationState register_to_surface(const TemplateModel& model, const Deformati
             "limbs bent along the frame", options.bent_first_level);
   }
   // A retry must fit clearly closer than the first fit (a tip matched to the wrong limb, a
-  // foot to the other foot, can still fit a little closer). Among the fits that are about as
-  // close as the closest, the least stretched wins: a limb bent at the wrong joint can cover
-  // the frame too, but only by stretching the template.
-  double closest = two_sided_rms(first);
+  // foot to the other foot, can still fit a little closer); of those, the least stretched of
+  // the about closest wins.
+  std::vector<std::size_t> closer;
+  std::vector<FitStats> closer_stats;
   for (std::size_t i = 1; i < candidates.size(); ++i) {
-    closest = std::min(closest, two_sided_rms(candidates[i].stats));
-  }
-  std::size_t chosen = 0;
-  for (std::size_t i = 1; i < candidates.size(); ++i) {
-    const double rms = two_sided_rms(candidates[i].stats);
-    if (rms >= options.landmark_gain * two_sided_rms(first)) continue;
-    if (rms > options.stretch_tolerance * closest) continue;
-    if (chosen == 0 || candidates[i].stats.stretch_rms < candidates[chosen].stats.stretch_rms) {
-      chosen = i;
+    if (two_sided_rms(candidates[i].stats) < options.landmark_gain * two_sided_rms(first)) {
+      closer.push_back(i);
+      closer_stats.push_back(candidates[i].stats);
     }
   }
-  return std::move(candidates[chosen].state);
+  if (closer.empty()) return std::move(candidates[0].state);
+  return std::move(
+      candidates[closer[least_stretched_close_fit(closer_stats, options.stretch_tolerance)]].state);
 }
 
 FitStats evaluate_fit(const TemplateModel& model, const std::vector<Vec3f>& positions,

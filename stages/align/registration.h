@@ -209,6 +209,15 @@ struct FitStats {
 FitStats evaluate_fit(const TemplateModel& model, const std::vector<Vec3f>& positions,
                       const SurfaceQuery& target, const RegistrationOptions& options);
 
+// Both-ways rms distance between a fitted template and its frame [m].
+double two_sided_rms(const FitStats& s);
+
+// Of several fits of one frame (not empty), the one to keep: of the fits whose both-ways rms is
+// within `stretch_tolerance` x the closest's, the least stretched. A limb on the other limb or
+// bent at the wrong joint can cover the frame about as closely, but only by stretching the
+// template.
+std::size_t least_stretched_close_fit(const std::vector<FitStats>& fits, double stretch_tolerance);
+
 // Rigid point-to-plane ICP of `points` (with their unit normals) onto the target; returns the
 // motion to apply to them.
 Eigen::Isometry3d rigid_icp(const std::vector<Vec3f>& points, const std::vector<Vec3f>& normals,

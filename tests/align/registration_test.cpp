@@ -342,6 +342,25 @@ TEST(Registration, ALegBentAtTheKneeIsFollowedAlongTheFrame) {
   }
 }
 
+// Of fits about as close as the closest (both-ways rms within the tolerance), the least
+// stretched is kept; a much closer fit beats a less stretched one outside the tolerance.
+TEST(Registration, TheLeastStretchedOfTheAboutClosestFitsIsKept) {
+  auto fit = [](double rms, double reverse, double stretch) {
+    FitStats s;
+    s.surface_rms = rms;
+    s.reverse_rms = reverse;
+    s.stretch_rms = stretch;
+    return s;
+  };
+  // Both-ways rms 5, 5.1 and 7.6 mm (the last beyond 1.5 x the closest).
+  const std::vector<FitStats> fits = {fit(0.003, 0.004, 0.06), fit(0.0051, 0, 0.05),
+                                      fit(0.0076, 0, 0.01)};
+  EXPECT_EQ(least_stretched_close_fit(fits, 1.5), 1u);
+  EXPECT_EQ(least_stretched_close_fit(fits, 1.6), 2u);
+  EXPECT_EQ(least_stretched_close_fit(fits, 1.0), 0u);
+  EXPECT_EQ(least_stretched_close_fit({fits[2]}, 1.5), 0u);
+}
+
 TEST(Registration, TheTemplatesCreasesAreSoftened) {
   // The figure's arms join its trunk: concave creases under the shoulders.
   const Mesh templ = remesh_to_vertex_count(joined_figure().rest, 2000);
