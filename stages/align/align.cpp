@@ -12,6 +12,7 @@
 #include <map>
 #include <mutex>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <random>
 #include <set>
 
@@ -268,7 +269,8 @@ json fit_json(const FitStats& s) {
           {"surface_max_mm", 1e3 * s.surface_max},
           {"reverse_rms_mm", 1e3 * s.reverse_rms},
           {"uncovered_fraction", s.uncovered_fraction},
-          {"flipped_triangles", s.flipped_triangles}};
+          {"flipped_triangles", s.flipped_triangles},
+          {"stretch_rms", s.stretch_rms}};
 }
 
 // Deletes <out>/<take>/*.ply files this run did not write (frames excluded now, takes gone).
@@ -607,6 +609,7 @@ class TreeRegistration {
   bool attempt(int k, int p) {
     FrameData& f = plan_.frames[plan_.usable[k]];
     reg_.attempted[k] = 1;
+    reg_.tried[k].insert(p);
     Fit fit;
     try {
       fit = fit_from(k, p);
@@ -634,21 +637,39 @@ class TreeRegistration {
     return true;
   }
 
-  // Registers aligned frame k again, from aligned frame p; the new fit replaces the one it has
-  // when it passes and leaves a smaller rms. Returns whether it did.
-  bool refit(int k, int p) {
-    Fit fit;
-    try {
-      fit = fit_from(k, p);
-    } catch (const SolverError&) {
-      return false;
+  // Registers aligned frame k again, from each of the aligned frames `parents`; of its fit and
+  // the new ones that pass, keeps least_stretched_close_fit's choice. Returns whether that is a
+  // new fit.
+  bool refit(int k, const std::vector<int>& parents) {
+    for (int p : parents) reg_.tried[k].insert(p);
+    std::vector<std::optional<Fit>> tries(parents.size());
+    tbb::parallel_for(std::size_t{0}, parents.size(), [&](std::size_t i) {
+      try {
+        tries[i] = fit_from(k, parents[i]);
+      } catch (const SolverError&) {
+      }
+    });
+    std::vector<Fit> fits;
+    std::vector<int> from;
+    std::vector<FitStats> stats{reg_.fits[k].stats};
+    for (std::size_t i = 0; i < parents.size(); ++i) {
+      if (!tries[i]) continue;
+      const bool passed = fit_failure(tries[i]->stats, options_).empty();
+      log::debug("{} registered again from {}: rms {:.1f} mm, stretch {:.3f}{}",
+                 frame_label(plan_.frames[plan_.usable[k]].status),
+                 frame_label(plan_.frames[plan_.usable[parents[i]]].status),
+                 1e3 * tries[i]->stats.surface_rms, tries[i]->stats.stretch_rms,
+                 passed ? "" : " (failed)");
+      if (!passed) continue;
+      stats.push_back(tries[i]->stats);
+      fits.push_back(std::move(*tries[i]));
+      from.push_back(parents[i]);
     }
-    if (!fit_failure(fit.stats, options_).empty() ||
-        !(fit.stats.surface_rms < reg_.fits[k].stats.surface_rms)) {
-      return false;
-    }
-    reg_.fits[k] = std::move(fit);
-    reg_.parent_of[k] = p;
+    const std::size_t chosen =
+        least_stretched_close_fit(stats, options_.registration.stretch_tolerance);
+    if (chosen == 0) return false;
+    reg_.fits[k] = std::move(fits[chosen - 1]);
+    reg_.parent_of[k] = from[chosen - 1];
     write_frame(k);
     return true;
   }
@@ -674,8 +695,8 @@ class TreeRegistration {
 
  private:
   // The fit of database frame k started from database frame p's (-1: the template at rest).
+  // The caller records p in reg_.tried[k].
   Fit fit_from(int k, int p) {
-    reg_.tried[k].insert(p);
     const FrameData& f = plan_.frames[plan_.usable[k]];
     if (p < 0) return register_frame(model_, rest_state(model_), nullptr, f, 0, options_);
     return register_frame(model_, reg_.fits[p].state, &plan_.frames[plan_.usable[p]].descriptor, f,
@@ -820,11 +841,11 @@ void run_branch_job(const fs::path& out, int branch, const AlignOptions& options
 }
 
 // Outlier fits: an aligned frame whose rms is more than outlier_rms_factor x the median of the
-// aligned frames' passed, but is most likely a wrong fit (a leg on the other leg, an arm slid
-// along itself). It is registered again from its neighbours in time and from the most similar
-// other aligned frames (not its own descendants, which started from its fit); the best fit is
-// kept, and the frames registered from a refitted frame are registered again from its new fit,
-// each keeping the better of its two fits.
+// aligned frames' passed, but is most likely a wrong fit (a leg on the other leg, an arm slid along itself). It is registered again from
+// its neighbours in time and from the most similar other aligned frames (not its own
+// descendants, which started from its fit); of its fits, the least stretched of the about
+// closest is kept (least_stretched_close_fit), and the frames registered from a refitted frame
+// are registered again from its new fit, each keeping the same rule's choice of its two fits.
 void refit_outliers(Plan& plan, Registrations& reg, TreeRegistration& registration,
                     const AlignOptions& options) {
   const int n = static_cast<int>(plan.usable.size());
@@ -849,7 +870,8 @@ void refit_outliers(Plan& plan, Registrations& reg, TreeRegistration& registrati
   };
   for (int k : outliers) {
     FrameStatus& s = status(k);
-    const double before = reg.fits[k].stats.surface_rms;
+    const FitStats first = reg.fits[k].stats;
+    const double before = first.surface_rms;
     std::vector<int> candidates;  // neighbours in time first, then the most similar frames
     std::vector<std::pair<double, int>> similar;
     for (int p = 0; p < n; ++p) {
@@ -865,18 +887,18 @@ void refit_outliers(Plan& plan, Registrations& reg, TreeRegistration& registrati
     for (int i = 0; i < options.reparent_attempts && i < static_cast<int>(similar.size()); ++i) {
       candidates.push_back(similar[i].second);
     }
-    bool improved = false;
-    for (int p : candidates) improved |= registration.refit(k, p);
-    if (!improved) {
+    if (!registration.refit(k, candidates)) {
       s.flags.push_back("outlier_fit");
-      log::warn("{}: fit rms {:.1f} mm, over {:g} x the median; no other parent fits better",
-                frame_label(s), 1e3 * before, options.outlier_rms_factor);
+      log::warn("{}: fit rms {:.1f} mm, over the outlier limit {:.1f} mm; no fit from another "
+                "parent is better (closer, or about as close and less stretched)",
+                frame_label(s), 1e3 * before, 1e3 * limit);
       continue;
     }
     s.flags.push_back("refitted");
-    log::info("{}: fit rms {:.1f} mm, over {:g} x the median; refitted from {}: {:.1f} mm",
-              frame_label(s), 1e3 * before, options.outlier_rms_factor,
-              frame_label(status(reg.parent_of[k])), 1e3 * reg.fits[k].stats.surface_rms);
+    log::info("{}: fit rms {:.1f} mm, over the outlier limit {:.1f} mm; refitted from {}: rms "
+              "{:.1f} mm, stretch {:.3f} -> {:.3f}",
+              frame_label(s), 1e3 * before, 1e3 * limit, frame_label(status(reg.parent_of[k])),
+              1e3 * reg.fits[k].stats.surface_rms, first.stretch_rms, reg.fits[k].stats.stretch_rms);
     // The frames registered from k, and from those in turn, again from the new fits.
     std::vector<int> redo{k};
     while (!redo.empty()) {
@@ -885,7 +907,7 @@ void refit_outliers(Plan& plan, Registrations& reg, TreeRegistration& registrati
       for (int c = 0; c < n; ++c) {
         if (!reg.aligned[c] || reg.parent_of[c] != p || c == k) continue;
         const double old_rms = reg.fits[c].stats.surface_rms;
-        if (registration.refit(c, p)) {
+        if (registration.refit(c, {p})) {
           status(c).flags.push_back("refitted");
           log::info("{}: registered again from the new fit of {}: rms {:.1f} -> {:.1f} mm",
                     frame_label(status(c)), frame_label(status(p)), 1e3 * old_rms,

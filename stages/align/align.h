@@ -82,8 +82,8 @@ struct AlignOptions {
     v("outlier_rms_factor", outlier_rms_factor,
       "a fit that passed with more than this x the median rms of the aligned frames is "
       "registered again from its neighbours in time and up to reparent_attempts other similar "
-      "frames, the best fit kept; "
-      "0: never",
+      "frames; of its fits, the least stretched of those within registration.stretch_tolerance "
+      "x the closest is kept; 0: never",
       Range{0, 1000});
     v("exclude_non_manifold", exclude_non_manifold, "exclude non-manifold frames");
     v("keep_failed_fits", keep_failed_fits,
