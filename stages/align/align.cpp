@@ -841,11 +841,12 @@ void run_branch_job(const fs::path& out, int branch, const AlignOptions& options
 }
 
 // Outlier fits: an aligned frame whose rms is more than outlier_rms_factor x the median of the
-// aligned frames' passed, but is most likely a wrong fit (a leg on the other leg, an arm slid along itself). It is registered again from
-// its neighbours in time and from the most similar other aligned frames (not its own
-// descendants, which started from its fit); of its fits, the least stretched of the about
-// closest is kept (least_stretched_close_fit), and the frames registered from a refitted frame
-// are registered again from its new fit, each keeping the same rule's choice of its two fits.
+// aligned frames' passed, but is most likely a wrong fit (a leg on the other leg, an arm slid
+// along itself). It is registered again from its neighbours in time and from the most similar
+// other aligned frames (not its own descendants, which started from its fit); of its fits, the
+// least stretched of the about closest is kept (least_stretched_close_fit), and the frames
+// registered from a refitted frame are registered again from its new fit, each keeping the same
+// rule's choice of its two fits.
 void refit_outliers(Plan& plan, Registrations& reg, TreeRegistration& registration,
                     const AlignOptions& options) {
   const int n = static_cast<int>(plan.usable.size());
@@ -898,7 +899,8 @@ void refit_outliers(Plan& plan, Registrations& reg, TreeRegistration& registrati
     log::info("{}: fit rms {:.1f} mm, over the outlier limit {:.1f} mm; refitted from {}: rms "
               "{:.1f} mm, stretch {:.3f} -> {:.3f}",
               frame_label(s), 1e3 * before, 1e3 * limit, frame_label(status(reg.parent_of[k])),
-              1e3 * reg.fits[k].stats.surface_rms, first.stretch_rms, reg.fits[k].stats.stretch_rms);
+              1e3 * reg.fits[k].stats.surface_rms, first.stretch_rms,
+              reg.fits[k].stats.stretch_rms);
     // The frames registered from k, and from those in turn, again from the new fits.
     std::vector<int> redo{k};
     while (!redo.empty()) {
