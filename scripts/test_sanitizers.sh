@@ -3,7 +3,8 @@
 # UndefinedBehaviorSanitizer, every report fatal) and runs under it
 #   1. every unit test: fourd_tests split into one GoogleTest shard per core, each shard one
 #      process, so that the tests which build the synthetic performer (cached per process) build
-#      it once per shard rather than once per test, as ctest's process per test would;
+#      it once per shard rather than once per test (ctest runs them the same way,
+#      tests/CMakeLists.txt);
 #   2. the end-to-end test: the workflow test session (tests/workflow/session.yaml: two walks of
 #      11 and 10 frames, 8 cameras of 320x240) through every stage with `fourd run`, then a
 #      second `fourd run` that must find nothing to do.

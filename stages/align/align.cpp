@@ -649,27 +649,26 @@ class TreeRegistration {
       } catch (const SolverError&) {
       }
     });
-    std::vector<Fit> fits;
-    std::vector<int> from;
     std::vector<FitStats> stats{reg_.fits[k].stats};
+    std::vector<std::size_t> passed;  // stats[j + 1] is tries[passed[j]]'s
     for (std::size_t i = 0; i < parents.size(); ++i) {
       if (!tries[i]) continue;
-      const bool passed = fit_failure(tries[i]->stats, options_).empty();
+      const bool ok = fit_failure(tries[i]->stats, options_).empty();
       log::debug("{} registered again from {}: rms {:.1f} mm, stretch {:.3f}{}",
                  frame_label(plan_.frames[plan_.usable[k]].status),
                  frame_label(plan_.frames[plan_.usable[parents[i]]].status),
                  1e3 * tries[i]->stats.surface_rms, tries[i]->stats.stretch_rms,
-                 passed ? "" : " (failed)");
-      if (!passed) continue;
+                 ok ? "" : " (failed)");
+      if (!ok) continue;
       stats.push_back(tries[i]->stats);
-      fits.push_back(std::move(*tries[i]));
-      from.push_back(parents[i]);
+      passed.push_back(i);
     }
     const std::size_t chosen =
         least_stretched_close_fit(stats, options_.registration.stretch_tolerance);
     if (chosen == 0) return false;
-    reg_.fits[k] = std::move(fits[chosen - 1]);
-    reg_.parent_of[k] = from[chosen - 1];
+    const std::size_t i = passed[chosen - 1];
+    reg_.fits[k] = std::move(*tries[i]);
+    reg_.parent_of[k] = parents[i];
     write_frame(k);
     return true;
   }
