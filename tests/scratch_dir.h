@@ -1,7 +1,7 @@
 #pragma once
 // Scratch folders for tests that write files: <tmp>/fourd_test_<pid>/<name>, created empty.
 // The process's whole fourd_test_<pid> folder is removed when the process exits normally, so a
-// test run (ctest starts one process per test) leaves nothing behind in the temp folder.
+// test run leaves nothing behind in the temp folder.
 #include <unistd.h>
 
 #include <cstdlib>

@@ -6,10 +6,16 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <chrono>
+#include <csignal>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
+#include <optional>
 #include <sstream>
+#include <thread>
 
 #include "pipeline/core/error.h"
 
@@ -33,7 +39,41 @@ std::string find_executable(const std::string& name) {
   return "";
 }
 
-int run_process(const std::vector<std::string>& args, const std::filesystem::path& log) {
+namespace {
+
+// Waits for `pid` to end; returns its wait status. Throws IoError when waiting fails.
+int wait_for(pid_t pid, const std::string& executable) {
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0) {
+    if (errno != EINTR) {
+      throw IoError(fmt::format("waiting for {} failed: {}", executable, std::strerror(errno)));
+    }
+  }
+  return status;
+}
+
+// As wait_for, but gives up after `seconds`: returns nullopt with the process still running.
+std::optional<int> wait_for(pid_t pid, const std::string& executable, double seconds) {
+  using Clock = std::chrono::steady_clock;
+  const auto deadline = Clock::now() + std::chrono::duration<double>(seconds);
+  auto pause = std::chrono::milliseconds(1);
+  for (;;) {
+    int status = 0;
+    const pid_t done = ::waitpid(pid, &status, WNOHANG);
+    if (done == pid) return status;
+    if (done < 0 && errno != EINTR) {
+      throw IoError(fmt::format("waiting for {} failed: {}", executable, std::strerror(errno)));
+    }
+    if (Clock::now() >= deadline) return std::nullopt;
+    std::this_thread::sleep_for(pause);
+    pause = std::min(pause * 2, std::chrono::milliseconds(100));
+  }
+}
+
+}  // namespace
+
+int run_process(const std::vector<std::string>& args, const std::filesystem::path& log,
+                double timeout_seconds) {
   if (args.empty()) throw IoError("run_process: no program to run");
   std::vector<std::string> all = args;
   const std::string& executable = all.front();
@@ -54,10 +94,19 @@ int run_process(const std::vector<std::string>& args, const std::filesystem::pat
     throw IoError(fmt::format("cannot start {}: {}", executable, std::strerror(rc)));
   }
   int status = 0;
-  while (::waitpid(pid, &status, 0) < 0) {
-    if (errno != EINTR) {
-      throw IoError(fmt::format("waiting for {} failed: {}", executable, std::strerror(errno)));
+  if (timeout_seconds > 0) {
+    const std::optional<int> ended = wait_for(pid, executable, timeout_seconds);
+    if (!ended) {
+      ::kill(pid, SIGKILL);
+      wait_for(pid, executable);
+      const std::string message =
+          fmt::format("{} did not finish within {} s and was killed", executable, timeout_seconds);
+      std::ofstream(log, std::ios::app) << "\n[fourd] " << message << "\n";
+      throw TimeoutError(message);
     }
+    status = *ended;
+  } else {
+    status = wait_for(pid, executable);
   }
   if (WIFEXITED(status)) return WEXITSTATUS(status);
   if (WIFSIGNALED(status)) return 128 + WTERMSIG(status);

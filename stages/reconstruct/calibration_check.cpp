@@ -279,7 +279,7 @@ class CheckWorkspace {
            "--SiftExtraction.num_threads", "2", "--SiftExtraction.max_num_features",
            std::to_string(options_.max_features), "--SiftExtraction.peak_threshold",
            fmt::format("{}", options_.peak_threshold)},
-          log());
+          log(), options_.timeout_s);
     }
     std::error_code ec;
     fs::remove(dir_ / "list.txt", ec);
@@ -299,7 +299,7 @@ class CheckWorkspace {
                         (dir_ / "pairs.txt").string(), "--match_type", "pairs",
                         "--SiftMatching.use_gpu", "0", "--SiftMatching.num_threads", "2",
                         "--SiftMatching.guided_matching", "1"},
-                       log());
+                       log(), options_.timeout_s);
   }
 
   // Triangulates frames `which` (indices into add_frames' list) with the poses and intrinsics
@@ -322,7 +322,7 @@ class CheckWorkspace {
          tol, "--Mapper.tri_create_max_angle_error", "4", "--Mapper.tri_continue_max_angle_error",
          "4", "--Mapper.ba_refine_focal_length", "0", "--Mapper.ba_refine_extra_params", "0",
          "--Mapper.num_threads", "2"},
-        log());
+        log(), options_.timeout_s);
     if (exit_code != 0) {
       // COLMAP 3.8 aborts (exit 134, a failed CHECK in its bundle adjustment) when there is
       // nothing to triangulate: say why instead of showing its stack trace.
@@ -331,7 +331,7 @@ class CheckWorkspace {
     run_colmap_checked(colmap_, "model_converter",
                        {"--input_path", model.string(), "--output_path", model.string(),
                         "--output_type", "TXT"},
-                       log());
+                       log(), options_.timeout_s);
     const fs::path merged = model / "merged";
     merge_frames(model, rig, merged);
     return merged;
@@ -527,11 +527,11 @@ void refine_calibration(const std::string& colmap, const CheckWorkspace& workspa
          "--BundleAdjustment.refine_principal_point", "0",
          "--BundleAdjustment.refine_extra_params", "0", "--BundleAdjustment.refine_extrinsics",
          "1"},
-        log);
+        log, options.timeout_s);
     run_colmap_checked(colmap, "model_converter",
                        {"--input_path", adjusted.string(), "--output_path", adjusted.string(),
                         "--output_type", "TXT"},
-                       log);
+                       log, options.timeout_s);
     std::vector<Camera> colmap_rig = read_colmap_model(adjusted);
     result.refined = reprojection_errors(colmap_rig, adjusted);
     result.fit_points = points;

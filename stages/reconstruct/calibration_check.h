@@ -50,6 +50,7 @@ struct CalibrationCheckOptions {
   double peak_threshold = 0.002;  // SIFT peak threshold (COLMAP's default 0.0067 finds few
                                   // features on small images)
   std::string executable = "colmap";  // name on PATH or path
+  double timeout_s = 300;       // a COLMAP command still running after this is killed and rerun
 
   template <class V>
   void visit(V& v) {
@@ -77,6 +78,9 @@ struct CalibrationCheckOptions {
     v("peak_threshold", peak_threshold, "SIFT peak threshold (lower: more features)",
       Range{0.0001, 0.1});
     v("executable", executable, "colmap executable (name on PATH or path)");
+    v("timeout_s", timeout_s,
+      "a COLMAP command still running after this long is killed and run once more [s]",
+      Range{1, 1e6});
   }
 };
 

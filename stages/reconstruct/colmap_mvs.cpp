@@ -146,7 +146,7 @@ std::size_t colmap_stereo_fusion(const std::string& executable, const fs::path& 
        "--StereoFusion.max_depth_error", fmt::format("{}", options.max_depth_error),
        "--StereoFusion.max_normal_error", fmt::format("{}", options.max_normal_error),
        "--StereoFusion.num_threads", "1"},
-      dir / "colmap.log");
+      dir / "colmap.log", options.timeout_s);
   return read_ply(fused).positions.size();
 }
 
@@ -159,7 +159,7 @@ Mesh colmap_poisson_mesh(const std::string& executable, const fs::path& dir,
                       std::to_string(options.poisson_depth), "--PoissonMeshing.trim",
                       fmt::format("{}", options.poisson_trim), "--PoissonMeshing.num_threads",
                       "1"},
-                     dir / "colmap.log");
+                     dir / "colmap.log", options.timeout_s);
   Mesh mesh = read_ply(meshed);
   mesh.normals.clear();
   mesh.colors.clear();

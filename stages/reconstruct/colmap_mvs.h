@@ -31,10 +31,15 @@ struct ColmapMvsOptions {
   double poisson_trim = 5;            // poisson_mesher density trim
   double hull_trim = 0.005;           // faces more than this outside the hull are cut [m]
   bool keep_workspace = false;        // keep the per-frame workspace (for inspection)
+  double timeout_s = 300;             // a COLMAP command still running after this is killed
+                                      // and rerun
 
   template <class V>
   void visit(V& v) {
     v("executable", executable, "colmap executable (name on PATH or path)");
+    v("timeout_s", timeout_s,
+      "a COLMAP command still running after this long is killed and run once more [s]",
+      Range{1, 1e6});
     v("min_num_pixels", min_num_pixels, "stereo_fusion min_num_pixels", Range{1, 1000});
     v("max_reproj_error", max_reproj_error, "stereo_fusion max_reproj_error [px]", Range{0, 100});
     v("max_depth_error", max_depth_error, "stereo_fusion max_depth_error (relative)",

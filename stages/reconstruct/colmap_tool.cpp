@@ -17,15 +17,29 @@ std::string find_colmap(const std::string& configured) {
 }
 
 int run_colmap(const std::string& executable, const std::string& command,
-               const std::vector<std::string>& args, const std::filesystem::path& log) {
+               const std::vector<std::string>& args, const std::filesystem::path& log,
+               double timeout_seconds) {
   std::vector<std::string> all = {executable, command};
   all.insert(all.end(), args.begin(), args.end());
-  return run_process(all, log);
+  constexpr int kAttempts = 2;
+  for (int attempt = 1;; ++attempt) {
+    try {
+      return run_process(all, log, timeout_seconds);
+    } catch (const TimeoutError&) {
+      if (attempt == kAttempts) {
+        throw TimeoutError(fmt::format(
+            "COLMAP {} did not finish within {} s, {} times (killed each time), log {}:\n{}",
+            command, timeout_seconds, kAttempts, log.string(), tail_of_file(log)));
+      }
+      std::ofstream(log, std::ios::app) << "[fourd] starting COLMAP " << command << " again\n";
+    }
+  }
 }
 
 void run_colmap_checked(const std::string& executable, const std::string& command,
-                        const std::vector<std::string>& args, const std::filesystem::path& log) {
-  int code = run_colmap(executable, command, args, log);
+                        const std::vector<std::string>& args, const std::filesystem::path& log,
+                        double timeout_seconds) {
+  int code = run_colmap(executable, command, args, log, timeout_seconds);
   if (code != 0) {
     throw SolverError(fmt::format("COLMAP {} failed (exit {}), log {}:\n{}", command, code,
                                   log.string(), tail_of_file(log)));

@@ -13,14 +13,19 @@ namespace fourd::reconstruct {
 std::string find_colmap(const std::string& configured);
 
 // Runs `executable command args...`, appending its stdout and stderr to `log`. Returns the exit
-// code (128 + signal when killed). Throws IoError when the process cannot be started.
+// code (128 + signal when killed). Throws IoError when the process cannot be started. With
+// `timeout_seconds` > 0, a run still going after that long is killed and started once more
+// (COLMAP's tools can hang, rarely, where a second run finishes; they pick up what the killed
+// run left in the database); a second timeout throws TimeoutError.
 int run_colmap(const std::string& executable, const std::string& command,
-               const std::vector<std::string>& args, const std::filesystem::path& log);
+               const std::vector<std::string>& args, const std::filesystem::path& log,
+               double timeout_seconds);
 
 // Runs it and throws SolverError("COLMAP <command> failed (exit N): <last lines of the log>")
 // unless it exits with 0.
 void run_colmap_checked(const std::string& executable, const std::string& command,
-                        const std::vector<std::string>& args, const std::filesystem::path& log);
+                        const std::vector<std::string>& args, const std::filesystem::path& log,
+                        double timeout_seconds);
 
 // COLMAP's dense workspace array format (mvs/mat.h): ASCII "width&height&channels&" then float32
 // values, one channel plane after another, rows top to bottom. `mat` is CV_32FC1..CV_32FC4.
