@@ -97,13 +97,14 @@ rt="$t/reconstruct/calibration_check/report.json"
   echo "## COLMAP calibration check, 8 cameras, calibration perturbed by synth"
   echo "(rotation 0.3°, translation 10 mm, focal length 1 %, standard deviations)"
   echo
-  echo "Checked frame ($(jq -r '"\(.take) frame \(.frame)"' "$r")), then the refinement's"
-  echo "frames spread through the session: its errors are over the frames it was fitted to."
+  echo "Checked frames ($(jq -r '"\(.frames), the first take \(.take) frame \(.frame)"' "$r")), then the"
+  echo "refinement's frames spread through the session: its errors are over the frames it was"
+  echo "fitted to."
   echo
-  echo "| camera | points | mean reprojection error [px] | points after refinement | after refinement [px] |"
+  echo "| camera | points | median reprojection error [px] | points after refinement | after refinement [px] |"
   echo "|---|---:|---:|---:|---:|"
   jq -r '
-    def err(e): if (e.observations // 0) > 0 then (e.mean_error_px * 1000 | round / 1000 | tostring) else "-" end;
+    def err(e): if (e.observations // 0) > 0 then (e.median_error_px * 1000 | round / 1000 | tostring) else "-" end;
     .refined as $r | .cameras | to_entries[] |
     "| \(.key) | \(.value.observations) | \(err(.value)) | \($r[.key].observations // 0) | \(err($r[.key] // {})) |"' "$r"
   echo

@@ -5,9 +5,11 @@
 #include <sqlite3.h>
 #include <fmt/ranges.h>
 
+#include <algorithm>
 #include <fstream>
 #include <iterator>
 #include <memory>
+#include <numeric>
 #include <sstream>
 #include <unordered_map>
 
@@ -127,11 +129,14 @@ nlohmann::json CalibrationCheckResult::to_json() const {
   nlohmann::json j;
   j["take"] = take;
   j["frame"] = frame;
+  j["frames"] = frames;
   j["points"] = points;
   auto errors = [](const std::map<std::string, CameraReprojection>& m) {
     nlohmann::json out = nlohmann::json::object();
     for (const auto& [name, e] : m) {
-      out[name] = {{"mean_error_px", e.mean_error_px}, {"observations", e.observations}};
+      out[name] = {{"mean_error_px", e.mean_error_px},
+                   {"median_error_px", e.median_error_px},
+                   {"observations", e.observations}};
     }
     return out;
   };
@@ -176,7 +181,7 @@ std::map<std::string, CameraReprojection> reprojection_errors(const std::vector<
     if (it == by_name.end()) continue;
     const Camera& cam = *it->second;
     CameraReprojection& e = out[cam.name];
-    double sum = 0;
+    std::vector<double> errors;
     std::istringstream obs(lines[i + 1]);
     double x, y;
     long id;
@@ -186,10 +191,14 @@ std::map<std::string, CameraReprojection> reprojection_errors(const std::vector<
       if (p == xyz.end()) continue;
       Eigen::Vector2d px;
       if (!cam.project(p->second, &px)) continue;
-      sum += (px - Eigen::Vector2d(x, y)).norm();
-      e.observations += 1;
+      errors.push_back((px - Eigen::Vector2d(x, y)).norm());
     }
-    e.mean_error_px = e.observations ? sum / e.observations : 0;
+    e.observations = errors.size();
+    if (errors.empty()) continue;
+    e.mean_error_px = std::accumulate(errors.begin(), errors.end(), 0.0) / errors.size();
+    auto middle = errors.begin() + errors.size() / 2;
+    std::nth_element(errors.begin(), middle, errors.end());
+    e.median_error_px = *middle;
   }
   return out;
 }
@@ -587,12 +596,13 @@ void refine_calibration(const std::string& colmap, const CheckWorkspace& workspa
 
 CalibrationCheckResult check_calibration(const std::string& colmap,
                                          const std::vector<Camera>& cameras,
-                                         const CheckFrame& checked,
+                                         const std::vector<CheckFrame>& checked,
                                          const std::vector<CheckFrame>& refine_frames,
                                          const CheckImageLoader& load,
                                          const CalibrationCheckOptions& options,
                                          const fs::path& out_dir) {
   if (cameras.empty()) throw InputError("calibration check: the rig has no cameras");
+  if (checked.empty()) throw InputError("calibration check: no frame to check");
   // Work in a fresh hidden folder beside the output and swap it in at the end (a killed run
   // leaves it hidden; the next run starts it afresh).
   const fs::path work = out_dir.parent_path() / ("." + out_dir.filename().string() + ".tmp");
@@ -601,40 +611,46 @@ CalibrationCheckResult check_calibration(const std::string& colmap,
   ensure_directory(work / "images");
   CheckWorkspace workspace(colmap, work, cameras, options);
   CalibrationCheckResult result;
-  result.take = checked.take;
-  result.frame = checked.frame;
+  result.take = checked.front().take;
+  result.frame = checked.front().frame;
+  result.frames = checked.size();
   try {
-    // Frame 0 is the checked one; the refinement's frames follow: two fitted, one held out.
-    std::vector<CheckFrame> frames = {checked};
+    // The checked frames first; the refinement's frames follow: two fitted, one held out.
+    std::vector<CheckFrame> frames = checked;
     frames.insert(frames.end(), refine_frames.begin(), refine_frames.end());
     workspace.add_frames(frames, load);
 
-    const fs::path checked_model = workspace.triangulate({0}, cameras, options.max_error_px,
-                                                         "triangulated");
+    std::vector<std::size_t> checked_indices(checked.size());
+    std::iota(checked_indices.begin(), checked_indices.end(), std::size_t{0});
+    const fs::path checked_model = workspace.triangulate(checked_indices, cameras,
+                                                         options.max_error_px, "triangulated");
     result.cameras = reprojection_errors(cameras, checked_model, &result.points);
     for (const Camera& c : cameras) {
       const CameraReprojection& e = result.cameras[c.name];
-      if (e.observations > 0 && e.observations < 10) {
+      if (e.observations > 0 && e.observations < static_cast<std::size_t>(options.min_points)) {
         result.warnings.push_back(fmt::format(
-            "camera {}: only {} triangulated point(s) in its image (mean reprojection error "
-            "{:.2f} px) — too few to judge its calibration (few SIFT matches between the cameras)",
-            c.name, e.observations, e.mean_error_px));
+            "camera {}: only {} triangulated point(s) in its images (median reprojection error "
+            "{:.2f} px) — too few to judge its calibration (few SIFT matches between the cameras; "
+            "calibration_check.check_frames adds frames)",
+            c.name, e.observations, e.median_error_px));
       } else if (e.observations == 0) {
         result.warnings.push_back(fmt::format(
             "camera {}: no point triangulated in its image — it sees nothing the others see, or "
             "its calibration is far off",
             c.name));
-      } else if (e.mean_error_px > options.warn_error_px) {
+      } else if (e.median_error_px > options.warn_error_px) {
         result.warnings.push_back(fmt::format(
-            "camera {}: mean reprojection error {:.2f} px over {} points exceeds {:.2f} px — its "
-            "calibration is off (refine it with --refine-calibration)",
-            c.name, e.mean_error_px, e.observations, options.warn_error_px));
+            "camera {}: median reprojection error {:.2f} px over {} points exceeds {:.2f} px — "
+            "its calibration is off (refine it with --refine-calibration)",
+            c.name, e.median_error_px, e.observations, options.warn_error_px));
       }
     }
 
     if (!refine_frames.empty()) {
       std::vector<std::size_t> fit, held_out;
-      for (std::size_t k = 1; k < frames.size(); ++k) ((k % 3) ? fit : held_out).push_back(k);
+      for (std::size_t k = 1; k <= refine_frames.size(); ++k) {
+        ((k % 3) ? fit : held_out).push_back(checked.size() - 1 + k);
+      }
       if (held_out.empty()) {
         result.warnings.push_back(
             "refinement skipped: it needs at least 3 frames (two fitted, one held out)");

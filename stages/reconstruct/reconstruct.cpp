@@ -472,19 +472,26 @@ void run_calibration_check(const Session& session, const Rig& rig,
     return;
   }
   const bool refine = check.refine || request.refine;
-  std::vector<CheckFrame> refine_frames;
-  if (refine) {
-    std::vector<std::pair<std::string, int>> frame_counts;
-    for (const TakeFrames& t : takes) frame_counts.emplace_back(t.name, t.frames);
-    refine_frames = spread_frames(frame_counts, check.refine_frames);
+  std::vector<std::pair<std::string, int>> frame_counts;
+  for (const TakeFrames& t : takes) frame_counts.emplace_back(t.name, t.frames);
+  // The named frame, then others spread through the session.
+  std::vector<CheckFrame> checked = {{take, frame}};
+  for (const CheckFrame& f : spread_frames(frame_counts, check.check_frames)) {
+    if (checked.size() == static_cast<std::size_t>(check.check_frames)) break;
+    if (f.take != take || f.frame != frame) checked.push_back(f);
   }
-  log::info("checking the calibration with COLMAP on take {} frame {}{}", take, frame,
+  std::vector<CheckFrame> refine_frames;
+  if (refine) refine_frames = spread_frames(frame_counts, check.refine_frames);
+  log::info("checking the calibration with COLMAP on take {} frame {}{}{}", take, frame,
+            checked.size() > 1
+                ? fmt::format(" and {} frames spread through the session", checked.size() - 1)
+                : "",
             refine ? fmt::format(" (with refinement on {} frames)", refine_frames.size()) : "");
   log::Timer timer;
   CalibrationCheckResult result;
   try {
     result = check_calibration(
-        colmap, rig.cameras, {take, frame}, refine_frames,
+        colmap, rig.cameras, checked, refine_frames,
         [&](const CheckFrame& f, const Camera& c) {
           return read_capture_image(session, c, f.take, f.frame);
         },
@@ -500,8 +507,8 @@ void run_calibration_check(const Session& session, const Rig& rig,
       after = fmt::format(", after refinement {:.3f} px (fitted frames)",
                           result.refined.at(name).mean_error_px);
     }
-    log::info("camera {}: mean reprojection error {:.3f} px over {} points{}", name,
-              e.mean_error_px, e.observations, after);
+    log::info("camera {}: reprojection error median {:.3f} px, mean {:.3f} px over {} points{}",
+              name, e.median_error_px, e.mean_error_px, e.observations, after);
   }
   for (const auto& w : result.warnings) log::warn("{}", w);
   if (result.fit_frames > 0) {

@@ -83,5 +83,35 @@ TEST(CalibrationCheck, RefinementFramesSpreadThroughTheSession) {
   EXPECT_TRUE(spread_frames(takes, 0).empty());
 }
 
+// A camera's error is judged by its median: a few mismatched points (which the triangulation's
+// loose bound lets in) pull the mean up, not the median.
+TEST(CalibrationCheck, ReprojectionErrorsGiveTheMedianBesideTheMean) {
+  const fs::path dir = fs::temp_directory_path() / "fourd_calib_check_median";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  Camera cam;
+  cam.name = "cam00";
+  cam.intrinsics = {640, 480, 500, 500, 320, 240};
+  // Five points 2 m in front of the camera, projecting to (320 + 50 k, 240); observed with
+  // errors of 0.5, 0.5, 0.5, 0.6 and 10 px.
+  const double offsets[] = {0.5, 0.5, 0.5, 0.6, 10};
+  std::ofstream points(dir / "points3D.txt");
+  std::string observations;
+  for (int k = 0; k < 5; ++k) {
+    points << k + 1 << " " << 0.2 * k << " 0 2 0 0 0 0 1 " << k << "\n";
+    observations += std::to_string(320 + 50 * k + offsets[k]) + " 240 " + std::to_string(k + 1) + " ";
+  }
+  points.close();
+  std::ofstream(dir / "images.txt") << "1 1 0 0 0 0 0 0 1 cam00.png\n" << observations << "\n";
+  std::size_t n = 0;
+  const auto errors = reprojection_errors({cam}, dir, &n);
+  EXPECT_EQ(n, 5u);
+  const CameraReprojection& e = errors.at("cam00");
+  EXPECT_EQ(e.observations, 5u);
+  EXPECT_NEAR(e.median_error_px, 0.5, 1e-6);
+  EXPECT_NEAR(e.mean_error_px, 12.1 / 5, 1e-6);
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace fourd::reconstruct
