@@ -117,12 +117,13 @@ std::string triangulation_failure(const fs::path& log, int exit_code,
     why = fmt::format("COLMAP point_triangulator failed (exit {})", exit_code);
   }
   return fmt::format(
-      "{} (SIFT features per camera{}: {}); the calibration cannot be checked on this frame — "
-      "cameras too far apart or images too small/untextured for SIFT. Try another frame "
-      "(--check-frame), a lower calibration_check.peak_threshold, or a rig with closer "
-      "cameras. COLMAP log: {}",
+      "{} (SIFT features per camera{}: {}); the calibration cannot be checked on {} — "
+      "cameras too far apart or images too small/untextured for SIFT. Try other frames "
+      "(--check-frame, calibration_check.check_frames), a lower "
+      "calibration_check.peak_threshold, or a rig with closer cameras. COLMAP log: {}",
       why, frames > 1 ? fmt::format(" over {} frames", frames) : std::string(),
-      per_camera.empty() ? "unknown" : per_camera, log.string());
+      per_camera.empty() ? "unknown" : per_camera, frames > 1 ? "these frames" : "this frame",
+      log.string());
 }
 
 nlohmann::json CalibrationCheckResult::to_json() const {
