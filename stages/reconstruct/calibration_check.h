@@ -36,13 +36,12 @@ struct CalibrationCheckOptions {
   bool enabled = true;          // check when the stage runs over the whole session
   std::string take;             // take of the checked frame ("": the first take)
   int frame = 0;                // the checked frame
-  int check_frames = 8;         // frames triangulated: the checked one and others spread
+  int check_frames = 16;        // frames triangulated: the checked one and others spread
                                 // through the session (one frame's SIFT matches on a costume
                                 // are a few points per camera, too few to judge by)
   double warn_error_px = 2.0;   // warn when a camera's median reprojection error is above
-                                // (8 frames: the true calibration 0.7-1.5 px on the default
-                                // sample, one perturbed by 0.3 deg, 10 mm, 1 % focal 1.7-5.0 px
-                                // on three of its takes)
+                                // (16 frames: the true calibration 0.6-1.5 px per camera,
+                                // one perturbed by 0.3 deg, 10 mm, 1 % focal 1.7-4.8 px)
   int min_points = 15;          // fewer points in a camera's images: too few to judge it
   bool refine = false;          // refine the calibration by bundle adjustment
   bool refine_focal_length = false;  // ... focal lengths too (principal points and distortion
