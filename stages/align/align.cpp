@@ -21,6 +21,7 @@
 #include "pipeline/core/files.h"
 #include "pipeline/core/log.h"
 #include "pipeline/core/mesh_io.h"
+#include "pipeline/core/statistics.h"
 #include "stages/align/mesh_tools.h"
 #include "stages/align/shape_tree.h"
 #include "stages/align/surface_query.h"
@@ -135,13 +136,6 @@ void inspect_frames(std::vector<FrameData>& frames, const AlignOptions& options)
     f.usable = usable;
     progress.step();
   });
-}
-
-// The upper median of `v` (reorders it); 0 when empty.
-double median(std::vector<double>& v) {
-  if (v.empty()) return 0;
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
 }
 
 // Takes of different characters cannot share a template: their volumes give them away.

@@ -5,7 +5,6 @@
 #include <sqlite3.h>
 #include <fmt/ranges.h>
 
-#include <algorithm>
 #include <fstream>
 #include <iterator>
 #include <memory>
@@ -17,6 +16,7 @@
 #include "pipeline/core/error.h"
 #include "pipeline/core/files.h"
 #include "pipeline/core/image_io.h"
+#include "pipeline/core/statistics.h"
 #include "stages/reconstruct/colmap_tool.h"
 
 namespace fourd::reconstruct {
@@ -197,9 +197,7 @@ std::map<std::string, CameraReprojection> reprojection_errors(const std::vector<
     e.observations = errors.size();
     if (errors.empty()) continue;
     e.mean_error_px = std::accumulate(errors.begin(), errors.end(), 0.0) / errors.size();
-    auto middle = errors.begin() + errors.size() / 2;
-    std::nth_element(errors.begin(), middle, errors.end());
-    e.median_error_px = *middle;
+    e.median_error_px = median(errors);
   }
   return out;
 }
