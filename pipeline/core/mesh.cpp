@@ -48,6 +48,13 @@ void Mesh::check(const std::string& what) const {
   check_indices(what, "triangle", triangles, nv);
   check_attribute_size(what, "normals", normals.size(), nv);
   check_attribute_size(what, "colors", colors.size(), nv);
+  check_attribute_size(what, "confidence", confidence.size(), nv);
+  for (std::size_t i = 0; i < confidence.size(); ++i) {
+    if (!(confidence[i] >= 0 && confidence[i] <= 1)) {
+      throw InputError(fmt::format("{}: vertex {} has confidence {}, expected 0..1", what, i,
+                                   confidence[i]));
+    }
+  }
   if (uv_triangles.empty()) {
     check_attribute_size(what, "texture coordinates", uvs.size(), nv);
   } else {

@@ -17,6 +17,9 @@ struct Mesh {
   std::vector<Tri> triangles;    // #F, counter-clockwise seen from outside
   std::vector<Vec3f> normals;    // #V or empty
   std::vector<Rgb8> colors;      // #V or empty
+  // Per-vertex confidence in [0, 1] (PLY property "confidence"), #V or empty. Reconstruct's:
+  // 0 where only the visual hull placed the surface, towards 1 the more cameras measured it.
+  std::vector<float> confidence;
   // Texture coordinates. Either per vertex (uvs.size() == #V, uv_triangles empty) or per
   // corner (uv_triangles.size() == #F indexing into uvs), as OBJ stores them at UV seams.
   std::vector<Vec2f> uvs;

@@ -408,6 +408,7 @@ struct PlyVertexLayout {
   int normal[3];
   int color[3];
   int uv[2];
+  int confidence = -1;
   bool float_color = false;  // colours stored as 0..1 floats rather than 0..255 integers
 
   bool has(const int* indices, int n) const {
@@ -434,6 +435,7 @@ PlyVertexLayout vertex_layout(const PlyElement& e, const std::string& file) {
   }
   layout.uv[0] = find_any(e, {"s", "u", "texture_u", "texture_s"});
   layout.uv[1] = find_any(e, {"t", "v", "texture_v", "texture_t"});
+  layout.confidence = e.find("confidence");
   return layout;
 }
 
@@ -450,11 +452,13 @@ void read_ply_vertices(Source& source, const PlyElement& element, const std::str
   const bool has_normals = layout.has(layout.normal, 3);
   const bool has_colors = layout.has(layout.color, 3);
   const bool has_uvs = layout.has(layout.uv, 2);
+  const bool has_confidence = layout.confidence >= 0;
   const std::size_t reserve = std::min(element.count, source.max_records());
   mesh.positions.reserve(reserve);
   if (has_normals) mesh.normals.reserve(reserve);
   if (has_colors) mesh.colors.reserve(reserve);
   if (has_uvs) mesh.uvs.reserve(reserve);
+  if (has_confidence) mesh.confidence.reserve(reserve);
 
   // Appends one vertex given the value of each property (by index).
   auto append = [&](auto value) {
@@ -474,6 +478,7 @@ void read_ply_vertices(Source& source, const PlyElement& element, const std::str
       mesh.uvs.emplace_back(static_cast<float>(value(layout.uv[0])),
                             static_cast<float>(value(layout.uv[1])));
     }
+    if (has_confidence) mesh.confidence.push_back(static_cast<float>(value(layout.confidence)));
   };
 
   const auto& properties = element.properties;
@@ -637,6 +642,7 @@ std::string ply_header(const Mesh& mesh, PlyFormat format) {
   if (!mesh.normals.empty()) h += "property float nx\nproperty float ny\nproperty float nz\n";
   if (!mesh.colors.empty()) h += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
   if (!mesh.uvs.empty() && !corner_uvs) h += "property float s\nproperty float t\n";
+  if (!mesh.confidence.empty()) h += "property float confidence\n";
   h += fmt::format("element face {}\n", mesh.num_triangles());
   h += "property list uchar int vertex_indices\n";
   // MeshLab's convention for per-corner ("wedge") texture coordinates.
@@ -650,7 +656,9 @@ std::string ply_binary_body(const Mesh& mesh) {
   const bool colors = !mesh.colors.empty();
   const bool corner_uvs = !mesh.uv_triangles.empty();
   const bool vertex_uvs = !mesh.uvs.empty() && !corner_uvs;
-  const std::size_t vertex_size = 12 + (normals ? 12 : 0) + (colors ? 3 : 0) + (vertex_uvs ? 8 : 0);
+  const bool confidence = !mesh.confidence.empty();
+  const std::size_t vertex_size =
+      12 + (normals ? 12 : 0) + (colors ? 3 : 0) + (vertex_uvs ? 8 : 0) + (confidence ? 4 : 0);
   const std::size_t face_size = 13 + (corner_uvs ? 25 : 0);
   std::string body(mesh.num_vertices() * vertex_size + mesh.num_triangles() * face_size, '\0');
   char* out = body.data();
@@ -665,6 +673,7 @@ std::string ply_binary_body(const Mesh& mesh) {
     if (vertex_uvs) {
       for (int k = 0; k < 2; ++k) store_little_endian(out, mesh.uvs[i][k]);
     }
+    if (confidence) store_little_endian(out, mesh.confidence[i]);
   }
   for (std::size_t f = 0; f < mesh.num_triangles(); ++f) {
     store_little_endian(out, std::uint8_t{3});
@@ -698,6 +707,7 @@ std::string ply_ascii_body(const Mesh& mesh) {
       fmt::format_to(put, " {} {} {}", int{c[0]}, int{c[1]}, int{c[2]});
     }
     if (vertex_uvs) fmt::format_to(put, " {} {}", mesh.uvs[i].x(), mesh.uvs[i].y());
+    if (!mesh.confidence.empty()) fmt::format_to(put, " {}", mesh.confidence[i]);
     out.push_back('\n');
   }
   for (std::size_t f = 0; f < mesh.num_triangles(); ++f) {

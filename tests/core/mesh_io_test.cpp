@@ -60,13 +60,14 @@ bool contains(const std::string& text, std::string_view part) {
   return text.find(part) != std::string::npos;
 }
 
-// An icosphere with every per-vertex attribute: normals, colours, spherical UVs.
+// An icosphere with every per-vertex attribute: normals, colours, spherical UVs, confidence.
 Mesh make_attributed_sphere() {
   Mesh mesh = test::make_icosphere(2, 0.7f);
   compute_vertex_normals(mesh);
   for (std::size_t i = 0; i < mesh.num_vertices(); ++i) {
     const Vec3f& p = mesh.positions[i];
     mesh.colors.emplace_back(i % 256, (i * 7) % 256, 255 - i % 256);
+    mesh.confidence.push_back(static_cast<float>(i % 11) / 10.0f);
     mesh.uvs.emplace_back(
         0.5f + std::atan2(p.y(), p.x()) / (2 * std::numbers::pi_v<float>),
         std::acos(std::clamp(p.z() / 0.7f, -1.f, 1.f)) / std::numbers::pi_v<float>);
@@ -92,6 +93,7 @@ void expect_same_mesh(const Mesh& a, const Mesh& b) {
   EXPECT_EQ(a.triangles, b.triangles);
   EXPECT_EQ(a.normals, b.normals);
   EXPECT_EQ(a.colors, b.colors);
+  EXPECT_EQ(a.confidence, b.confidence);
   EXPECT_EQ(a.uvs, b.uvs);
   EXPECT_EQ(a.uv_triangles, b.uv_triangles);
   EXPECT_EQ(a.texture, b.texture);
@@ -139,7 +141,7 @@ TEST_F(MeshIoTest, PlyWithoutFacesIsAPointCloud) {
 }
 
 TEST_F(MeshIoTest, PlyAsciiQuadsExtraPropertiesAndOtherNames) {
-  // Doubles, an alpha channel, an unknown scalar and an unknown list on vertices; "u v"
+  // Doubles, confidence, an alpha channel and an unknown list on vertices; "u v"
   // coordinates; "vertex_index" with uint indices, a quad and a pentagon; an extra face
   // property and an unknown element; comments and CRLF line ends.
   const fs::path file = write_text("quads.ply",
@@ -178,6 +180,7 @@ TEST_F(MeshIoTest, PlyAsciiQuadsExtraPropertiesAndOtherNames) {
   ASSERT_EQ(mesh.num_vertices(), 5u);
   EXPECT_EQ(mesh.positions[4], Vec3f(0.5f, 0.5f, 1));
   EXPECT_EQ(mesh.colors[3], Rgb8(10, 20, 30));
+  EXPECT_EQ(mesh.confidence, std::vector<float>(5, 0.5f));
   ASSERT_EQ(mesh.uvs.size(), 5u);
   EXPECT_EQ(mesh.uvs[2], Vec2f(1, 1));
   EXPECT_TRUE(mesh.normals.empty());
@@ -380,6 +383,7 @@ TEST_F(MeshIoTest, ObjRoundTripWithCornerUvsAndTexture) {
 
 TEST_F(MeshIoTest, ObjRoundTripWithVertexAttributes) {
   Mesh mesh = make_attributed_sphere();
+  mesh.confidence.clear();  // OBJ has no place for it
   write_mesh(path("sphere.obj"), mesh);
   EXPECT_EQ(files(), std::vector<std::string>{"sphere.obj"});  // no texture: no .mtl
   expect_same_mesh(read_mesh(path("sphere.obj")), mesh);

@@ -97,6 +97,18 @@ TEST(Mesh, CheckRejectsBadMeshes) {
   colors.colors.resize(9);
   EXPECT_THROW(colors.check("m"), InputError);
 
+  Mesh confidence = test::make_box();
+  confidence.confidence.assign(8, 1.0f);
+  EXPECT_NO_THROW(confidence.check("m"));
+  confidence.confidence.resize(7);
+  EXPECT_THROW(confidence.check("m"), InputError);
+  confidence.confidence.assign(8, 0.0f);
+  confidence.confidence[5] = 1.5f;
+  EXPECT_NE(input_error([&] { confidence.check("m"); }).find("vertex 5 has confidence 1.5"),
+            std::string::npos);
+  confidence.confidence[5] = std::nanf("");
+  EXPECT_THROW(confidence.check("m"), InputError);
+
   Mesh uvs = test::make_box();
   uvs.uvs.assign(7, Vec2f::Zero());
   EXPECT_THROW(uvs.check("m"), InputError);
