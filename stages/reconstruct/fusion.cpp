@@ -9,7 +9,15 @@ namespace fourd::reconstruct {
 
 void fuse_depth_maps(ScalarGrid& field, const std::vector<PinholeCamera>& cameras,
                      const std::vector<DepthMap>& depth_maps, double min_score,
-                     const FusionOptions& options) {
+                     const FusionOptions& options, ScalarGrid* depth_weight) {
+  if (depth_weight) {
+    depth_weight->origin = field.origin;
+    depth_weight->voxel = field.voxel;
+    depth_weight->nx = field.nx;
+    depth_weight->ny = field.ny;
+    depth_weight->nz = field.nz;
+    depth_weight->values.assign(field.values.size(), 0.0f);
+  }
   const float tau = static_cast<float>(options.truncation);
   const float band = static_cast<float>(options.band);
   const float hull_weight = static_cast<float>(options.hull_weight);
@@ -49,6 +57,7 @@ void fuse_depth_maps(ScalarGrid& field, const std::vector<PinholeCamera>& camera
           sum += w * std::min(sd, tau);
           weight += w;
         }
+        if (depth_weight) depth_weight->values[field.index(x, y, z)] = weight;
         if (weight <= 0) continue;
         const float fused =
             (sum + hull_weight * std::clamp(hull, -tau, tau)) / (weight + hull_weight);
@@ -56,6 +65,34 @@ void fuse_depth_maps(ScalarGrid& field, const std::vector<PinholeCamera>& camera
       }
     }
   });
+}
+
+std::vector<float> surface_confidence(const Mesh& mesh, const ScalarGrid& depth_weight,
+                                      const FusionOptions& options) {
+  const float hull_weight = static_cast<float>(options.hull_weight);
+  std::vector<float> confidence(mesh.num_vertices(), 0.0f);
+  tbb::parallel_for(std::size_t{0}, mesh.num_vertices(), [&](std::size_t i) {
+    const Eigen::Vector3d g =
+        (mesh.positions[i].cast<double>() - depth_weight.origin) / depth_weight.voxel;
+    const int x0 = static_cast<int>(std::floor(g.x()));
+    const int y0 = static_cast<int>(std::floor(g.y()));
+    const int z0 = static_cast<int>(std::floor(g.z()));
+    float w = 0;
+    for (int dz = 0; dz <= 1; ++dz) {
+      for (int dy = 0; dy <= 1; ++dy) {
+        for (int dx = 0; dx <= 1; ++dx) {
+          const int x = x0 + dx, y = y0 + dy, z = z0 + dz;
+          if (x < 0 || y < 0 || z < 0 || x >= depth_weight.nx || y >= depth_weight.ny ||
+              z >= depth_weight.nz) {
+            continue;
+          }
+          w = std::max(w, depth_weight.at(x, y, z));
+        }
+      }
+    }
+    confidence[i] = w > 0 ? w / (w + hull_weight) : 0.0f;
+  });
+  return confidence;
 }
 
 }  // namespace fourd::reconstruct

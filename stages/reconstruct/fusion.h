@@ -43,8 +43,17 @@ struct FusionOptions {
 };
 
 // `field` holds the visual hull (VisualHull::grid()) on input and the fused field on output.
+// With `depth_weight`, that grid (resized to the field's) receives every sample's summed weight
+// of depth votes: 0 where the surface can only be the hull's (no camera measured a depth
+// there, as in a concavity every view is blocked from).
 void fuse_depth_maps(ScalarGrid& field, const std::vector<PinholeCamera>& cameras,
                      const std::vector<DepthMap>& depth_maps, double min_score,
-                     const FusionOptions& options);
+                     const FusionOptions& options, ScalarGrid* depth_weight = nullptr);
+
+// Confidence of every vertex of a surface fused with `depth_weight` (fuse_depth_maps): W / (W +
+// hull_weight), W the largest depth weight of the grid samples around the vertex - the share of
+// the depths' votes in where the surface is, 0 where the hull alone put it.
+std::vector<float> surface_confidence(const Mesh& mesh, const ScalarGrid& depth_weight,
+                                      const FusionOptions& options);
 
 }  // namespace fourd::reconstruct

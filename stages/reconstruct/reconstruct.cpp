@@ -117,6 +117,7 @@ FrameResult reconstruct_frame(const Rig& rig, const FrameInput& input,
   // 1. Visual hull.
   VisualHull hull(cameras, input.silhouettes, options.visual_hull);
   ScalarGrid field = hull.grid();
+  ScalarGrid depth_weight;  // the fusion's depth votes per sample (method stereo)
   if (field.nx == 0) {
     result.failure = "the visual hull is empty: no point of the capture volume is inside every "
                      "silhouette (check the silhouettes and the calibration)";
@@ -221,7 +222,8 @@ FrameResult reconstruct_frame(const Rig& rig, const FrameInput& input,
         fill(guided, depth);
         timer.done("guided_pass");
       }
-      fuse_depth_maps(field, pinholes, depth_maps, options.depth.min_ncc, options.fusion);
+      fuse_depth_maps(field, pinholes, depth_maps, options.depth.min_ncc, options.fusion,
+                      &depth_weight);
       timer.done("fusion");
       surface = keep_largest_component(
           extract_isosurface(subsample(field, options.isosurface_step), 0.0f));
@@ -276,6 +278,13 @@ FrameResult reconstruct_frame(const Rig& rig, const FrameInput& input,
   if (options.project_to_field && options.method != "colmap" && options.isosurface_step > 1) {
     project_to_isosurface(result.mesh, field, 0.0f, options.isosurface_step * field.voxel);
     timer.done("project_to_field");
+  }
+  if (!depth_weight.values.empty()) {
+    result.mesh.confidence = surface_confidence(result.mesh, depth_weight, options.fusion);
+    const auto low = std::count_if(result.mesh.confidence.begin(), result.mesh.confidence.end(),
+                                   [](float c) { return c < 0.5f; });
+    result.low_confidence_fraction =
+        result.mesh.confidence.empty() ? 0.0 : double(low) / result.mesh.confidence.size();
   }
   result.reconstructed = true;
   return result;
@@ -352,6 +361,7 @@ nlohmann::json frame_record(const std::string& take, int frame, const FrameResul
   j["vertices"] = r.mesh.positions.size();
   j["triangles"] = r.mesh.triangles.size();
   j["depth_coverage"] = r.depth_coverage;
+  j["low_confidence_fraction"] = r.low_confidence_fraction;
   nlohmann::json seconds = nlohmann::json::object();
   double total = 0;
   for (const auto& [step, s] : r.seconds) {  // a step done more than once: its total

@@ -149,6 +149,8 @@ struct FrameResult {
   std::vector<std::string> warnings;
   std::vector<std::pair<std::string, double>> seconds;  // per step, in order
   double depth_coverage = 0;           // fraction of hull pixels that got a depth
+  // Fraction of the mesh's vertices of confidence below 0.5 (mostly the hull's: Mesh::confidence).
+  double low_confidence_fraction = 0;
 };
 
 // Reconstructs one frame. A frame that cannot be reconstructed (empty hull, COLMAP failing)
