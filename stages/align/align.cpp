@@ -93,6 +93,7 @@ Mesh load_frame(const FrameData& f) {
   Mesh out;
   out.positions = std::move(mesh.positions);
   out.triangles = std::move(mesh.triangles);
+  out.confidence = std::move(mesh.confidence);
   return out;
 }
 

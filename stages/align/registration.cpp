@@ -65,6 +65,11 @@ double robust_weight(double residual, double scale) {
 
 float cos_degrees(double degrees) { return static_cast<float>(std::cos(degrees * M_PI / 180.0)); }
 
+// The weight of frame surface of `confidence` (0..1).
+double confidence_weight(double confidence, const RegistrationOptions& options) {
+  return options.unconfident_weight + (1 - options.unconfident_weight) * confidence;
+}
+
 struct Correspondence {
   Vec3d point = Vec3d::Zero();
   Vec3d normal = Vec3d::Zero();
@@ -84,7 +89,8 @@ std::vector<Correspondence> find_correspondences(const std::vector<Vec3f>& posit
     if (!hit.found) return;
     out[i].point = hit.point.cast<double>();
     out[i].normal = hit.normal.cast<double>();
-    out[i].weight = robust_weight(hit.distance, robust_scale);
+    out[i].weight =
+        confidence_weight(hit.confidence, options) * robust_weight(hit.distance, robust_scale);
   });
   return out;
 }
@@ -106,6 +112,7 @@ struct ReverseMatch {
 struct FrameSamples {
   std::vector<Vec3f> points;
   std::vector<Vec3f> normals;
+  std::vector<float> confidence;
 };
 
 FrameSamples sample_frame(const SurfaceQuery& target, std::size_t count) {
@@ -117,6 +124,7 @@ FrameSamples sample_frame(const SurfaceQuery& target, std::size_t count) {
     if (normals[i].isZero()) continue;  // not on any triangle
     samples.points.push_back(positions[i]);
     samples.normals.push_back(normals[i]);
+    samples.confidence.push_back(target.confidence().empty() ? 1.0f : target.confidence()[i]);
   }
   return samples;
 }
@@ -137,7 +145,8 @@ std::vector<ReverseMatch> find_reverse_correspondences(const TemplateModel& mode
     out[i].barycentric = hit.barycentric.cast<double>();
     out[i].point = samples.points[i].cast<double>();
     out[i].normal = samples.normals[i].cast<double>();
-    out[i].weight = robust_weight(hit.distance, robust_scale);
+    out[i].weight = confidence_weight(samples.confidence[i], options) *
+                    robust_weight(hit.distance, robust_scale);
   });
   return out;
 }
@@ -1204,14 +1213,20 @@ FitStats evaluate_fit(const TemplateModel& model, const std::vector<Vec3f>& posi
                       const SurfaceQuery& target, const RegistrationOptions& options) {
   FitStats stats;
   const std::size_t nv = positions.size();
-  std::vector<double> forward(nv, 0.0);
+  std::vector<double> forward(nv, 0.0), forward_weight(nv, 1.0);
   tbb::parallel_for(std::size_t{0}, nv, [&](std::size_t i) {
     SurfaceHit hit = target.closest(positions[i], std::numeric_limits<float>::max());
     forward[i] = hit.found ? hit.distance : std::numeric_limits<double>::infinity();
+    forward_weight[i] = confidence_weight(hit.confidence, options);
   });
-  double sum = 0;
-  for (double d : forward) sum += d * d;
-  stats.surface_rms = nv ? std::sqrt(sum / nv) : 0.0;
+  // The rms weights the frame's surface as the registration does: a fit that keeps away from
+  // a membrane of low confidence is not a worse fit.
+  double sum = 0, weights = 0;
+  for (std::size_t i = 0; i < nv; ++i) {
+    sum += forward_weight[i] * forward[i] * forward[i];
+    weights += forward_weight[i];
+  }
+  stats.surface_rms = weights > 0 ? std::sqrt(sum / weights) : 0.0;
   if (nv) {
     std::vector<double> sorted = forward;
     const std::size_t k = std::min(nv - 1, static_cast<std::size_t>(0.95 * nv));
@@ -1230,15 +1245,18 @@ FitStats evaluate_fit(const TemplateModel& model, const std::vector<Vec3f>& posi
     SurfaceHit hit = fitted_query.closest(frame_points[s * stride], std::numeric_limits<float>::max());
     reverse[s] = hit.found ? hit.distance : std::numeric_limits<double>::infinity();
   });
-  double reverse_sum = 0;
-  std::size_t uncovered = 0;
-  for (double d : reverse) {
-    reverse_sum += d * d;
-    if (d > options.coverage_distance) ++uncovered;
+  // Frame surface of low confidence counts for less.
+  const std::vector<float>& confidence = target.confidence();
+  double reverse_sum = 0, uncovered = 0, total = 0;
+  for (std::size_t s = 0; s < samples; ++s) {
+    const double c = confidence.empty() ? 1.0 : confidence_weight(confidence[s * stride], options);
+    reverse_sum += c * reverse[s] * reverse[s];
+    if (reverse[s] > options.coverage_distance) uncovered += c;
+    total += c;
   }
-  if (samples) {
-    stats.reverse_rms = std::sqrt(reverse_sum / samples);
-    stats.uncovered_fraction = static_cast<double>(uncovered) / samples;
+  if (total > 0) {
+    stats.reverse_rms = std::sqrt(reverse_sum / total);
+    stats.uncovered_fraction = uncovered / total;
   }
 
   // Stretch: how far the fit is from an isometry of the template (edge lengths).

@@ -72,6 +72,8 @@ struct RegistrationOptions {
   double crease_curvature = 1;   // regulariser softened to 1 / (1 + H / this) where the
                                  // template is concave with mean curvature H [1/m] (0: uniform)
   double crease_refine_floor = 0.25;  // ... but the vertex refinement's to no less than this
+  double unconfident_weight = 0.3;  // weight of frame surface of confidence 0 (Mesh::confidence)
+                                    // relative to confidence 1
   double stretch_tolerance = 1.5;  // retries within this x the closest fit's both-ways rms:
                                    // the least stretched is kept
   ExtremityOptions extremities;
@@ -140,6 +142,11 @@ struct RegistrationOptions {
       "the vertex refinement's regulariser is softened in the creases to no less than this "
       "(1: not at all); softer, a reconstruction's sharp dimples fold over",
       Range{0, 1});
+    v("unconfident_weight", unconfident_weight,
+      "weight of frame surface of confidence 0 relative to confidence 1, in between linearly "
+      "(frames that carry a confidence, as reconstruct's do: low where only the visual hull put "
+      "the surface, which fills concavities no camera sees into); 1: confidence ignored",
+      Range{0, 1});
     v("stretch_tolerance", stretch_tolerance,
       "of the retries that fit within this x the closest one's both-ways rms, the least "
       "stretched is kept",
@@ -197,11 +204,13 @@ void apply_rigid(const TemplateModel& model, const Eigen::Isometry3d& motion,
 
 // How well a deformed template fits a frame.
 struct FitStats {
-  double surface_rms = 0;        // template vertices to the frame's surface [m]
+  double surface_rms = 0;        // template vertices to the frame's surface [m], weighted by
+                                 // the surface's confidence as registration weights it
   double surface_p95 = 0;        // [m]
   double surface_max = 0;        // [m]
-  double reverse_rms = 0;        // frame vertices to the fitted surface [m]
+  double reverse_rms = 0;        // frame vertices to the fitted surface [m] (weighted so too)
   double uncovered_fraction = 0; // frame vertices farther than coverage_distance from the fit
+                                 // (so weighted)
   int flipped_triangles = 0;     // triangles turned over relative to their local rotation
   double stretch_rms = 0;        // rms relative change of the template's edge lengths
 };

@@ -23,6 +23,7 @@ struct QueryState {
   const std::vector<Tri>* triangles;
   const std::vector<Vec3f>* face_normals;
   const std::vector<int>* source;
+  const std::vector<float>* confidence;
   Vec3f p;
   Vec3f normal;
   float min_cos;
@@ -49,6 +50,8 @@ bool point_query_callback(RTCPointQueryFunctionArguments* args) {
   hit.triangle = (*state->source)[prim];
   hit.barycentric = bary;
   hit.distance = d;
+  const std::vector<float>& c = *state->confidence;
+  hit.confidence = c.empty() ? 1.0f : bary[0] * c[t[0]] + bary[1] * c[t[1]] + bary[2] * c[t[2]];
   return true;
 }
 
@@ -103,6 +106,7 @@ struct SurfaceQuery::Impl {
   std::vector<Tri> triangles;  // the non-degenerate ones
   std::vector<Vec3f> face_normals;
   std::vector<int> source;  // index of each kept triangle in the input mesh
+  std::vector<float> confidence;
   Eigen::AlignedBox3f bounds;  // of the kept triangles' vertices
   RTCScene scene = nullptr;
   ~Impl() {
@@ -113,6 +117,7 @@ struct SurfaceQuery::Impl {
 SurfaceQuery::SurfaceQuery(const Mesh& mesh) : impl_(std::make_unique<Impl>()) {
   Impl& s = *impl_;
   s.positions = mesh.positions;
+  s.confidence = mesh.confidence;
   s.triangles.reserve(mesh.triangles.size());
   s.face_normals.reserve(mesh.triangles.size());
   for (std::size_t f = 0; f < mesh.triangles.size(); ++f) {
@@ -134,7 +139,7 @@ SurfaceHit SurfaceQuery::closest(const Vec3f& p, float max_distance, const Vec3f
                                  float min_cos) const {
   SurfaceHit hit;
   if (impl_->triangles.empty()) return hit;
-  QueryState state{&impl_->positions, &impl_->triangles, &impl_->face_normals, &impl_->source, p, normal,
+  QueryState state{&impl_->positions, &impl_->triangles, &impl_->face_normals, &impl_->source, &impl_->confidence, p, normal,
                    min_cos, !normal.isZero(), &hit};
   // Embree visits every triangle whose box meets the query sphere, in tree order, not nearest
   // first, so a large radius costs thousands of visits before the sphere shrinks (and the
@@ -163,5 +168,6 @@ SurfaceHit SurfaceQuery::closest(const Vec3f& p, float max_distance, const Vec3f
 
 const std::vector<Vec3f>& SurfaceQuery::positions() const { return impl_->positions; }
 const std::vector<Tri>& SurfaceQuery::triangles() const { return impl_->triangles; }
+const std::vector<float>& SurfaceQuery::confidence() const { return impl_->confidence; }
 
 }  // namespace fourd::align

@@ -17,11 +17,13 @@ struct SurfaceHit {
   int triangle = -1;                  // index into the input mesh's triangles
   Vec3f barycentric = Vec3f::Zero();  // of `point` in `triangle`
   float distance = 0;                 // |query - point| [m]
+  float confidence = 1;               // the surface's confidence at `point` (0..1)
 };
 
 class SurfaceQuery {
  public:
-  // Keeps a copy of positions and triangles. Degenerate triangles are skipped.
+  // Keeps a copy of positions, triangles and the vertices' confidence (Mesh::confidence; a hit
+  // interpolates it). Degenerate triangles are skipped.
   explicit SurfaceQuery(const Mesh& mesh);
   ~SurfaceQuery();
   SurfaceQuery(const SurfaceQuery&) = delete;
@@ -33,6 +35,8 @@ class SurfaceQuery {
                      float min_cos = -1.0f) const;
 
   const std::vector<Vec3f>& positions() const;
+  // Per-vertex confidence of the surface (0..1), empty when the mesh has none.
+  const std::vector<float>& confidence() const;
   // The triangles it searches (the input's non-degenerate ones).
   const std::vector<Tri>& triangles() const;
 

@@ -415,5 +415,39 @@ TEST(Registration, AnArmRaisedSidewaysStretchesItsArmpit) {
   EXPECT_LT(softened, 0.75 * uniform);  // 4.1 vs 5.8 mm
 }
 
+TEST(Registration, SurfaceOfLowConfidenceDoesNotPullTheTemplate) {
+  // A capsule whose frame has a membrane-like bulge on one side, as a reconstruction fills a
+  // concavity no camera sees into (under an arm) with the visual hull. Unmarked, the bulge
+  // draws the template out; marked with confidence 0 (reconstruct's: only the hull put the
+  // surface there), weighted by unconfident_weight, much less (36 -> 10 mm).
+  auto capsule = [](const Eigen::Vector3d& p) {
+    return test::segment_distance(p, {0, 0, -0.5}, {0, 0, 0.5}) - 0.15;
+  };
+  auto bulged = [&](const Eigen::Vector3d& p) {
+    const double bulge = (p - Eigen::Vector3d(0.17, 0, 0)).norm() - 0.09;
+    return test::smooth_min(capsule(p), bulge, 0.03);
+  };
+  const Mesh templ = remesh_to_vertex_count(
+      test::isosurface_of(capsule, {-0.3, -0.3, -0.8}, {0.3, 0.3, 0.8}, 0.01), 2000);
+  Mesh frame = test::isosurface_of(bulged, {-0.3, -0.3, -0.8}, {0.4, 0.3, 0.8}, 0.01);
+  auto farthest_off_the_capsule = [&](const Mesh& target_mesh) {
+    const SurfaceQuery target(target_mesh);
+    const RestFit fit = register_from_rest(templ, target, RegistrationOptions{});
+    double worst = 0;
+    for (const Vec3f& p : fit.positions) {
+      worst = std::max(worst, std::abs(capsule(p.cast<double>())));
+    }
+    return worst;
+  };
+  const double unmarked = farthest_off_the_capsule(frame);
+  for (const Vec3f& p : frame.positions) {
+    frame.confidence.push_back(std::abs(capsule(p.cast<double>())) > 0.01 ? 0.0f : 1.0f);
+  }
+  const double marked = farthest_off_the_capsule(frame);
+  std::cout << "bulge: template vertices up to " << unmarked * 1e3 << " mm off the capsule, "
+            << marked * 1e3 << " mm with the bulge's confidence 0\n";
+  EXPECT_LT(marked, 0.5 * unmarked);
+}
+
 }  // namespace
 }  // namespace fourd::align
