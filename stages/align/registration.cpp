@@ -124,7 +124,7 @@ FrameSamples sample_frame(const SurfaceQuery& target, std::size_t count) {
     if (normals[i].isZero()) continue;  // not on any triangle
     samples.points.push_back(positions[i]);
     samples.normals.push_back(normals[i]);
-    samples.confidence.push_back(target.confidence().empty() ? 1.0f : target.confidence()[i]);
+    samples.confidence.push_back(target.vertex_confidence(i));
   }
   return samples;
 }
@@ -1246,10 +1246,9 @@ FitStats evaluate_fit(const TemplateModel& model, const std::vector<Vec3f>& posi
     reverse[s] = hit.found ? hit.distance : std::numeric_limits<double>::infinity();
   });
   // Frame surface of low confidence counts for less.
-  const std::vector<float>& confidence = target.confidence();
   double reverse_sum = 0, uncovered = 0, total = 0;
   for (std::size_t s = 0; s < samples; ++s) {
-    const double c = confidence.empty() ? 1.0 : confidence_weight(confidence[s * stride], options);
+    const double c = confidence_weight(target.vertex_confidence(s * stride), options);
     reverse_sum += c * reverse[s] * reverse[s];
     if (reverse[s] > options.coverage_distance) uncovered += c;
     total += c;

@@ -139,8 +139,8 @@ SurfaceHit SurfaceQuery::closest(const Vec3f& p, float max_distance, const Vec3f
                                  float min_cos) const {
   SurfaceHit hit;
   if (impl_->triangles.empty()) return hit;
-  QueryState state{&impl_->positions, &impl_->triangles, &impl_->face_normals, &impl_->source, &impl_->confidence, p, normal,
-                   min_cos, !normal.isZero(), &hit};
+  QueryState state{&impl_->positions, &impl_->triangles, &impl_->face_normals, &impl_->source,
+                   &impl_->confidence, p, normal, min_cos, !normal.isZero(), &hit};
   // Embree visits every triangle whose box meets the query sphere, in tree order, not nearest
   // first, so a large radius costs thousands of visits before the sphere shrinks (and the
   // sphere never shrinks while only normal-incompatible triangles are near). Most queries have
@@ -168,6 +168,8 @@ SurfaceHit SurfaceQuery::closest(const Vec3f& p, float max_distance, const Vec3f
 
 const std::vector<Vec3f>& SurfaceQuery::positions() const { return impl_->positions; }
 const std::vector<Tri>& SurfaceQuery::triangles() const { return impl_->triangles; }
-const std::vector<float>& SurfaceQuery::confidence() const { return impl_->confidence; }
+float SurfaceQuery::vertex_confidence(std::size_t i) const {
+  return impl_->confidence.empty() ? 1.0f : impl_->confidence[i];
+}
 
 }  // namespace fourd::align

@@ -35,8 +35,8 @@ class SurfaceQuery {
                      float min_cos = -1.0f) const;
 
   const std::vector<Vec3f>& positions() const;
-  // Per-vertex confidence of the surface (0..1), empty when the mesh has none.
-  const std::vector<float>& confidence() const;
+  // Confidence of the surface at its vertex i (0..1): 1 when the mesh has none.
+  float vertex_confidence(std::size_t i) const;
   // The triangles it searches (the input's non-degenerate ones).
   const std::vector<Tri>& triangles() const;
 
