@@ -9,6 +9,7 @@
 #include <cctype>
 #include <cmath>
 #include <fmt/ranges.h>
+#include <limits>
 #include <map>
 #include <mutex>
 #include <nlohmann/json.hpp>
@@ -761,15 +762,26 @@ void run_tree_job(const fs::path& in, const fs::path& out, const StageArgs& args
 
   // 2. The template.
   log::Timer template_timer;
-  Mesh root_mesh = load_frame(frames[root]);
+  const Mesh root_frame = load_frame(frames[root]);
+  Mesh root_mesh = root_frame;
   if (options.handle_voxel > 0) {
     const int before = frames[root].status.handles;  // counted by inspect_frames
     root_mesh = remove_small_handles(root_mesh, options.handle_voxel, options.handle_radius);
     const int after = check_manifold(root_mesh).handles;
     if (after != before) log::info("template: handles of the root frame {} -> {}", before, after);
   }
-  const Mesh template_mesh = remesh_to_vertex_count(root_mesh, options.template_vertices,
-                                                    options.remesh_iterations);
+  Mesh template_mesh = remesh_to_vertex_count(root_mesh, options.template_vertices,
+                                              options.remesh_iterations);
+  if (!root_frame.confidence.empty()) {
+    // The template keeps its frame's confidence: low where the root frame is a membrane.
+    const SurfaceQuery root_surface(root_frame);
+    template_mesh.confidence.resize(template_mesh.num_vertices());
+    for (std::size_t i = 0; i < template_mesh.num_vertices(); ++i) {
+      template_mesh.confidence[i] =
+          root_surface.closest(template_mesh.positions[i], std::numeric_limits<float>::max())
+              .confidence;
+    }
+  }
   ensure_directory(out);
   write_ply(out / "template.ply", template_mesh);
   // Every aligned frame is the template's topology: its file's size once per frame.

@@ -428,6 +428,11 @@ std::vector<double> crease_softness(const Mesh& mesh, const std::vector<std::vec
 // than crease_refine_floor. Needs the rings, their weights and the graph.
 void soften_creases(const RegistrationOptions& options, TemplateModel* model) {
   model->vertex_softness = crease_softness(model->rest, model->rings, options.crease_curvature);
+  const std::vector<float>& confidence = model->rest.confidence;
+  for (std::size_t i = 0; i < confidence.size(); ++i) {
+    model->vertex_softness[i] *=
+        options.unconfident_stiffness + (1 - options.unconfident_stiffness) * confidence[i];
+  }
   const std::vector<double>& soft = model->vertex_softness;
   for (std::size_t i = 0; i < model->rings.size(); ++i) {
     for (std::size_t k = 0; k < model->rings[i].size(); ++k) {
@@ -832,6 +837,7 @@ TemplateModel build_template_model(const Mesh& template_mesh, const Registration
   TemplateModel model;
   model.rest.positions = template_mesh.positions;
   model.rest.triangles = template_mesh.triangles;
+  model.rest.confidence = template_mesh.confidence;
   model.rings = vertex_neighbours(model.rest);
   model.ring_weights = cotangent_weights(model.rest, model.rings);
   model.graph = build_graph(model.rest, model.rings, options.graph_nodes, options.node_influences);

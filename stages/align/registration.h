@@ -74,6 +74,8 @@ struct RegistrationOptions {
   double crease_refine_floor = 0.25;  // ... but the vertex refinement's to no less than this
   double unconfident_weight = 0.3;  // weight of frame surface of confidence 0 (Mesh::confidence)
                                     // relative to confidence 1
+  double unconfident_stiffness = 0.2;  // regulariser factor where the template's own surface
+                                       // had confidence 0 (its root frame's membranes)
   double stretch_tolerance = 1.5;  // retries within this x the closest fit's both-ways rms:
                                    // the least stretched is kept
   ExtremityOptions extremities;
@@ -146,6 +148,11 @@ struct RegistrationOptions {
       "weight of frame surface of confidence 0 relative to confidence 1, in between linearly "
       "(frames that carry a confidence, as reconstruct's do: low where only the visual hull put "
       "the surface, which fills concavities no camera sees into); 1: confidence ignored",
+      Range{0, 1});
+    v("unconfident_stiffness", unconfident_stiffness,
+      "the regulariser's factor where the template's own surface had confidence 0 (membranes "
+      "the visual hull left in its root frame's concavities: a wrong rest shape to keep), in "
+      "between linearly; 1: the same everywhere",
       Range{0, 1});
     v("stretch_tolerance", stretch_tolerance,
       "of the retries that fit within this x the closest one's both-ways rms, the least "

@@ -415,21 +415,24 @@ TEST(Registration, AnArmRaisedSidewaysStretchesItsArmpit) {
   EXPECT_LT(softened, 0.75 * uniform);  // 4.1 vs 5.8 mm
 }
 
+// A capsule along z (signed distance), and the same with a bulge on its +x side: the membrane a
+// visual hull leaves in a concavity no camera sees into.
+double capsule(const Eigen::Vector3d& p) {
+  return test::segment_distance(p, {0, 0, -0.5}, {0, 0, 0.5}) - 0.15;
+}
+double bulged_capsule(const Eigen::Vector3d& p) {
+  const double bulge = (p - Eigen::Vector3d(0.17, 0, 0)).norm() - 0.09;
+  return test::smooth_min(capsule(p), bulge, 0.03);
+}
+
 TEST(Registration, SurfaceOfLowConfidenceDoesNotPullTheTemplate) {
   // A capsule whose frame has a membrane-like bulge on one side, as a reconstruction fills a
   // concavity no camera sees into (under an arm) with the visual hull. Unmarked, the bulge
   // draws the template out; marked with confidence 0 (reconstruct's: only the hull put the
   // surface there), weighted by unconfident_weight, much less (36 -> 10 mm).
-  auto capsule = [](const Eigen::Vector3d& p) {
-    return test::segment_distance(p, {0, 0, -0.5}, {0, 0, 0.5}) - 0.15;
-  };
-  auto bulged = [&](const Eigen::Vector3d& p) {
-    const double bulge = (p - Eigen::Vector3d(0.17, 0, 0)).norm() - 0.09;
-    return test::smooth_min(capsule(p), bulge, 0.03);
-  };
   const Mesh templ = remesh_to_vertex_count(
       test::isosurface_of(capsule, {-0.3, -0.3, -0.8}, {0.3, 0.3, 0.8}, 0.01), 2000);
-  Mesh frame = test::isosurface_of(bulged, {-0.3, -0.3, -0.8}, {0.4, 0.3, 0.8}, 0.01);
+  Mesh frame = test::isosurface_of(bulged_capsule, {-0.3, -0.3, -0.8}, {0.4, 0.3, 0.8}, 0.01);
   auto farthest_off_the_capsule = [&](const Mesh& target_mesh) {
     const SurfaceQuery target(target_mesh);
     const RestFit fit = register_from_rest(templ, target, RegistrationOptions{});
@@ -447,6 +450,41 @@ TEST(Registration, SurfaceOfLowConfidenceDoesNotPullTheTemplate) {
   std::cout << "bulge: template vertices up to " << unmarked * 1e3 << " mm off the capsule, "
             << marked * 1e3 << " mm with the bulge's confidence 0\n";
   EXPECT_LT(marked, 0.5 * unmarked);
+}
+
+TEST(Registration, TemplateOfLowConfidenceHasItsRegulariserSoftened) {
+  // The template itself carries a membrane: a bulge the visual hull left in its frame, of
+  // confidence 0. Its rest shape there is not the body's, so the regulariser holds it less
+  // (unconfident_stiffness), at the vertices and at the graph nodes that move them, and
+  // nowhere else.
+  const Mesh plain = remesh_to_vertex_count(
+      test::isosurface_of(bulged_capsule, {-0.3, -0.3, -0.8}, {0.4, 0.3, 0.8}, 0.01), 2000);
+  Mesh marked = plain;
+  for (const Vec3f& p : marked.positions) {
+    marked.confidence.push_back(std::abs(capsule(p.cast<double>())) > 0.01 ? 0.0f : 1.0f);
+  }
+  const RegistrationOptions options;
+  const TemplateModel before = build_template_model(plain, options);
+  const TemplateModel after = build_template_model(marked, options);
+  int membrane = 0;
+  for (std::size_t i = 0; i < plain.num_vertices(); ++i) {
+    const double expected = marked.confidence[i] > 0
+                                ? before.vertex_softness[i]
+                                : options.unconfident_stiffness * before.vertex_softness[i];
+    EXPECT_NEAR(after.vertex_softness[i], expected, 1e-12) << "vertex " << i;
+    membrane += marked.confidence[i] == 0;
+  }
+  EXPECT_GT(membrane, 100);
+  int softened_nodes = 0;
+  for (std::size_t j = 0; j < after.node_softness.size(); ++j) {
+    EXPECT_LE(after.node_softness[j], before.node_softness[j]);
+    softened_nodes += after.node_softness[j] < 0.9 * before.node_softness[j];
+    // A node on the capsule's far side moves no membrane vertex.
+    if (before.graph.node_position[j].x() < -0.1) {
+      EXPECT_EQ(after.node_softness[j], before.node_softness[j]) << "node " << j;
+    }
+  }
+  EXPECT_GT(softened_nodes, 3);
 }
 
 }  // namespace
