@@ -69,7 +69,7 @@ struct RegistrationOptions {
   double limb_blend = 0.05;      // a turned limb's rotation fades in over this [m]
   double limb_band = 0.04;       // a limb is followed along the frame in rings this wide [m]
   int bent_first_level = 4;      // the fit from the limbs bent along the frame starts here
-  double crease_curvature = 1;   // regulariser softened to 1 / (1 + H / this) where the
+  double crease_curvature = 0.5; // regulariser softened to 1 / (1 + H / this) where the
                                  // template is concave with mean curvature H [1/m] (0: uniform)
   double crease_refine_floor = 0.25;  // ... but the vertex refinement's to no less than this
   double unconfident_weight = 0.3;  // weight of frame surface of confidence 0 (Mesh::confidence)
