@@ -65,9 +65,14 @@ double robust_weight(double residual, double scale) {
 
 float cos_degrees(double degrees) { return static_cast<float>(std::cos(degrees * M_PI / 180.0)); }
 
+// A factor that is `at_zero` at confidence 0, 1 at confidence 1, linear in between.
+double by_confidence(double confidence, double at_zero) {
+  return at_zero + (1 - at_zero) * confidence;
+}
+
 // The weight of frame surface of `confidence` (0..1).
 double confidence_weight(double confidence, const RegistrationOptions& options) {
-  return options.unconfident_weight + (1 - options.unconfident_weight) * confidence;
+  return by_confidence(confidence, options.unconfident_weight);
 }
 
 struct Correspondence {
@@ -430,8 +435,7 @@ void soften_creases(const RegistrationOptions& options, TemplateModel* model) {
   model->vertex_softness = crease_softness(model->rest, model->rings, options.crease_curvature);
   const std::vector<float>& confidence = model->rest.confidence;
   for (std::size_t i = 0; i < confidence.size(); ++i) {
-    model->vertex_softness[i] *=
-        options.unconfident_stiffness + (1 - options.unconfident_stiffness) * confidence[i];
+    model->vertex_softness[i] *= by_confidence(confidence[i], options.unconfident_stiffness);
   }
   const std::vector<double>& soft = model->vertex_softness;
   for (std::size_t i = 0; i < model->rings.size(); ++i) {
