@@ -16,6 +16,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <set>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -84,6 +85,7 @@ AlignmentErrors measure_alignment(const fs::path& align_dir, const fs::path& inp
   // Bind the template to the ground truth at the root frame.
   AlignmentErrors out;
   out.root = root_take + "/" + root_node.at("frame").dump();
+  out.triangles = templ.triangles;
   std::vector<int> bound_triangle(templ.num_vertices());
   std::vector<Vec3f> bound_weights(templ.num_vertices());
   {
@@ -119,8 +121,11 @@ AlignmentErrors measure_alignment(const fs::path& align_dir, const fs::path& inp
       followed[i] = barycentric_point(truth, bound_triangle[i], bound_weights[i]);
       e.correspondence[i] = (aligned.positions[i] - followed[i]).norm();
     }
-    for (const Tri& t : templ.triangles) {
-      if (triangle_normal(aligned.positions, t).dot(triangle_normal(followed, t)) <= 0) ++e.flipped;
+    for (std::size_t t = 0; t < templ.triangles.size(); ++t) {
+      const Tri& tri = templ.triangles[t];
+      if (triangle_normal(aligned.positions, tri).dot(triangle_normal(followed, tri)) <= 0) {
+        e.flipped.push_back(static_cast<int>(t));
+      }
     }
     if (with_surface) {
       const Mesh input = read_ply(input_dir / f.take / f.file);
@@ -136,12 +141,21 @@ AlignmentErrors measure_alignment(const fs::path& align_dir, const fs::path& inp
 
 void AlignmentErrors::summarise() {
   std::vector<double> all_corr, all_surface;
-  flipped = 0;
+  std::set<int> distinct;
+  std::vector<double> flip_errors;
   for (const AlignedFrameError& f : frames) {
     all_corr.insert(all_corr.end(), f.correspondence.begin(), f.correspondence.end());
     all_surface.insert(all_surface.end(), f.surface.begin(), f.surface.end());
-    flipped += f.flipped;
+    for (int t : f.flipped) {
+      distinct.insert(t);
+      const Tri& tri = triangles[t];
+      flip_errors.push_back(std::max({f.correspondence[tri[0]], f.correspondence[tri[1]],
+                                      f.correspondence[tri[2]]}));
+    }
   }
+  flipped = static_cast<int>(flip_errors.size());
+  flipped_distinct = static_cast<int>(distinct.size());
+  flipped_error_median = flip_errors.empty() ? 0.0 : percentile(flip_errors, 0.5);
   correspondence_rms = rms(all_corr);
   correspondence_p95 = percentile(all_corr, 0.95);
   surface_rms = rms(all_surface);
@@ -259,7 +273,7 @@ std::string worst_frames(const AlignmentErrors& e, std::size_t count) {
   std::string md = "Worst frames (correspondence rms, surface rms, flipped triangles):\n\n";
   for (const auto& [value, f] : order) {
     md += fmt::format("- {}/{}: {:.1f} mm, {:.1f} mm, {}\n", f->take, f->frame, 1e3 * value,
-                      1e3 * rms(f->surface), f->flipped);
+                      1e3 * rms(f->surface), f->flipped.size());
   }
   return md + "\n";
 }
@@ -321,6 +335,13 @@ StageReport validate_align(const ValidationContext& ctx) {
     report.details += fmt::format("**{}** (root {}, {} frames):\n\n{}\n", v.folder, errors.root,
                                   errors.frames.size(), take_table(errors, sequential.get()));
     report.details += worst_frames(errors, 8);
+    if (errors.flipped > 0) {
+      report.details += fmt::format(
+          "Flipped triangles: {} over {} template triangles; the largest correspondence error of "
+          "a flipped triangle's vertices, median {:.1f} mm (a triangle faces against the truth it "
+          "follows where its vertices slid across a crease).\n\n",
+          errors.flipped, errors.flipped_distinct, 1e3 * errors.flipped_error_median);
+    }
     Picture p;
     p.file = fmt::format("{}_correspondence.png", v.folder);
     write_image_atomic(ctx.reports_dir / p.file,

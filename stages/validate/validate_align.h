@@ -12,16 +12,21 @@ struct AlignedFrameError {
   int frame = 0;
   std::vector<double> correspondence;  // per template vertex [m]
   std::vector<double> surface;         // per template vertex [m]; empty when not measured
-  int flipped = 0;                     // triangles turned over relative to the ground truth
+  std::vector<int> flipped;  // triangles turned over relative to the ground truth (indices)
 };
 
 struct AlignmentErrors {
   std::string root;  // "<take>/<frame>" the template was bound at
+  std::vector<Tri> triangles;             // the template's
   std::vector<AlignedFrameError> frames;  // sorted by take, frame
   double correspondence_rms = 0;  // over every vertex of every frame [m]
   double correspondence_p95 = 0;  // [m]
   double surface_rms = 0;         // [m]
-  int flipped = 0;
+  int flipped = 0;                // over all frames
+  int flipped_distinct = 0;       // template triangles flipped in at least one frame
+  // Per flip, the largest correspondence error of the triangle's vertices: its median [m]
+  // (a triangle faces against the truth it follows when its vertices slid across a crease).
+  double flipped_error_median = 0;
   void summarise();  // fills the totals from `frames`
 };
 

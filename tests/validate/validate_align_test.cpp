@@ -86,6 +86,10 @@ TEST_F(AlignMeasure, FrameLeftBehindAndFlippedTrianglesAreMeasured) {
   int incident = 0;
   for (const Tri& t : truth0_.triangles) incident += t[0] == 0 || t[1] == 0 || t[2] == 0;
   EXPECT_EQ(e.flipped, incident);
+  EXPECT_EQ(e.flipped_distinct, incident);
+  // Every flipped triangle has the pushed vertex, 1.5 x its distance from the centre off.
+  const float pushed = 1.5f * (truth1_.positions[0] - centre).norm();
+  EXPECT_NEAR(e.flipped_error_median, pushed, 1e-5);
 }
 
 }  // namespace
