@@ -338,8 +338,8 @@ StageReport validate_align(const ValidationContext& ctx) {
     if (errors.flipped > 0) {
       report.details += fmt::format(
           "Flipped triangles: {} over {} template triangles; the largest correspondence error of "
-          "a flipped triangle's vertices, median {:.1f} mm (a triangle faces against the truth it "
-          "follows where its vertices slid across a crease).\n\n",
+          "a flipped triangle's vertices, median {:.1f} mm (tens of mm: the surface slid along "
+          "itself, e.g. across a crease; a few mm: folds).\n\n",
           errors.flipped, errors.flipped_distinct, 1e3 * errors.flipped_error_median);
     }
     Picture p;

@@ -25,7 +25,7 @@ struct AlignmentErrors {
   int flipped = 0;                // over all frames
   int flipped_distinct = 0;       // template triangles flipped in at least one frame
   // Per flip, the largest correspondence error of the triangle's vertices: its median [m]
-  // (a triangle faces against the truth it follows when its vertices slid across a crease).
+  // (tens of mm: the surface slid along itself, e.g. across a crease; a few mm: folds).
   double flipped_error_median = 0;
   void summarise();  // fills the totals from `frames`
 };
