@@ -751,6 +751,79 @@ SparseMatrix laplacian(const TemplateModel& model) {
   return l;
 }
 
+}  // namespace
+
+std::vector<int> folded_triangles(const TemplateModel& model, const std::vector<Vec3f>& positions) {
+  const std::vector<Mat3d> rotations = local_rotations(model, positions);
+  const auto& r = model.rest.positions;
+  std::vector<int> out;
+  for (std::size_t i = 0; i < model.rest.triangles.size(); ++i) {
+    const Tri& t = model.rest.triangles[i];
+    const Vec3d rest_normal = (r[t[1]] - r[t[0]]).cross(r[t[2]] - r[t[0]]).cast<double>();
+    const Vec3d expected = (rotations[t[0]] + rotations[t[1]] + rotations[t[2]]) * rest_normal;
+    const Vec3d now =
+        (positions[t[1]] - positions[t[0]]).cross(positions[t[2]] - positions[t[0]]).cast<double>();
+    if (now.dot(expected) <= 0) out.push_back(static_cast<int>(i));
+  }
+  return out;
+}
+
+void unfold(const TemplateModel& model, const std::vector<Vec3f>& graph_positions, int rings,
+            std::vector<Vec3f>* positions) {
+  const std::vector<int> folds = folded_triangles(model, *positions);
+  if (folds.empty() || rings < 0) return;
+  const int nv = static_cast<int>(positions->size());
+  std::vector<int> index(nv, -1), patch;
+  auto take = [&](int v) {
+    if (index[v] < 0) {
+      index[v] = static_cast<int>(patch.size());
+      patch.push_back(v);
+    }
+  };
+  for (int t : folds) {
+    for (int v : model.rest.triangles[t]) take(v);
+  }
+  for (int r = 0; r < rings; ++r) {
+    const std::size_t end = patch.size();
+    for (std::size_t k = 0; k < end; ++k) {
+      for (int w : model.rings[patch[k]]) take(w);
+    }
+  }
+  // sum_j w_ij (d_i - d_j) = 0 for the patch's vertices, d = x - graph position; d is the
+  // refinement's outside the patch.
+  const int n = static_cast<int>(patch.size());
+  std::vector<Eigen::Triplet<double>> triplets;
+  Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(n, 3);
+  for (int k = 0; k < n; ++k) {
+    const int i = patch[k];
+    double diagonal = 0;
+    for (std::size_t e = 0; e < model.rings[i].size(); ++e) {
+      const int j = model.rings[i][e];
+      const double w = model.ring_weights[i][e];
+      diagonal += w;
+      if (index[j] >= 0) {
+        triplets.emplace_back(k, index[j], -w);
+      } else {
+        rhs.row(k) += w * ((*positions)[j] - graph_positions[j]).cast<double>().transpose();
+      }
+    }
+    triplets.emplace_back(k, k, diagonal + 1e-9);
+  }
+  SparseMatrix a(n, n);
+  a.setFromTriplets(triplets.begin(), triplets.end());
+  Eigen::SimplicialLDLT<SparseMatrix> solver(a);
+  if (solver.info() != Eigen::Success) return;
+  const Eigen::MatrixXd d = solver.solve(rhs);
+  if (solver.info() != Eigen::Success || !d.allFinite()) return;
+  std::vector<Vec3f> patched = *positions;
+  for (int k = 0; k < n; ++k) {
+    patched[patch[k]] = graph_positions[patch[k]] + d.row(k).transpose().cast<float>();
+  }
+  if (folded_triangles(model, patched).size() < folds.size()) *positions = std::move(patched);
+}
+
+namespace {
+
 void refine_vertices(const TemplateModel& model, const SurfaceQuery& target,
                      const RegistrationOptions& options, std::vector<Vec3f>* positions) {
   const int nv = static_cast<int>(positions->size());
@@ -1003,7 +1076,9 @@ DeformationState register_pass(const TemplateModel& model, const DeformationStat
     }
   }
   state.positions = deform_with_graph(model, state);
+  const std::vector<Vec3f> graph_positions = state.positions;
   refine_vertices(model, target, options, &state.positions);
+  unfold(model, graph_positions, options.unfold_rings, &state.positions);
   return state;
 }
 
@@ -1283,17 +1358,7 @@ FitStats evaluate_fit(const TemplateModel& model, const std::vector<Vec3f>& posi
   }
   stats.stretch_rms = edges ? std::sqrt(stretch_sum / edges) : 0.0;
 
-  // Fold-overs: a triangle whose normal opposes its rest normal carried by the local rotations.
-  const std::vector<Mat3d> rotations = local_rotations(model, positions);
-  for (const Tri& t : model.rest.triangles) {
-    const auto& r = model.rest.positions;
-    const Vec3d rest_normal =
-        (r[t[1]] - r[t[0]]).cross(r[t[2]] - r[t[0]]).cast<double>();
-    const Vec3d expected = (rotations[t[0]] + rotations[t[1]] + rotations[t[2]]) * rest_normal;
-    const Vec3d now =
-        (positions[t[1]] - positions[t[0]]).cross(positions[t[2]] - positions[t[0]]).cast<double>();
-    if (now.dot(expected) <= 0) ++stats.flipped_triangles;
-  }
+  stats.flipped_triangles = static_cast<int>(folded_triangles(model, positions).size());
   return stats;
 }
 

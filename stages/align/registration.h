@@ -72,6 +72,8 @@ struct RegistrationOptions {
   double crease_curvature = 0.5; // regulariser softened to 1 / (1 + H / this) where the
                                  // template is concave with mean curvature H [1/m] (0: uniform)
   double crease_refine_floor = 0.25;  // ... but the vertex refinement's to no less than this
+  int unfold_rings = 2;  // folds the refinement leaves get the graph's shape back, with this
+                         // many rings around them (-1: not)
   double unconfident_weight = 0.3;  // weight of frame surface of confidence 0 (Mesh::confidence)
                                     // relative to confidence 1
   double unconfident_stiffness = 0.2;  // regulariser factor where the template's own surface
@@ -144,6 +146,12 @@ struct RegistrationOptions {
       "the vertex refinement's regulariser is softened in the creases to no less than this "
       "(1: not at all); softer, a reconstruction's sharp dimples fold over",
       Range{0, 1});
+    v("unfold_rings", unfold_rings,
+      "where the vertex refinement folds the surface over (a triangle against its rest normal "
+      "carried by the local rotations), the folded triangles and this many rings around them "
+      "take the deformation graph's shape back, joined smoothly to the refinement around them; "
+      "-1: folds are left",
+      Range{-1, 100});
     v("unconfident_weight", unconfident_weight,
       "weight of frame surface of confidence 0 relative to confidence 1, in between linearly "
       "(frames that carry a confidence, as reconstruct's do: low where only the visual hull put "
@@ -208,6 +216,18 @@ std::vector<Vec3f> deform_with_graph(const TemplateModel& model, const Deformati
 // Applies the rigid motion after the deformation: x -> motion * x, for graph and positions.
 void apply_rigid(const TemplateModel& model, const Eigen::Isometry3d& motion,
                  DeformationState* state);
+
+// The triangles of a deformed template folded over: normal against the rest normal carried by
+// the local (one-ring) rotations.
+std::vector<int> folded_triangles(const TemplateModel& model, const std::vector<Vec3f>& positions);
+
+// Where `positions` (the vertex refinement's) fold the surface over, gives the folds and `rings`
+// rings around them the graph's shape back: the refinement's displacement from
+// `graph_positions` is interpolated harmonically (cotangent weights) from the patch's border,
+// so the patch joins the rest and takes the graph's smooth layout. Kept only if it has fewer
+// folds. rings < 0: nothing done.
+void unfold(const TemplateModel& model, const std::vector<Vec3f>& graph_positions, int rings,
+            std::vector<Vec3f>* positions);
 
 // How well a deformed template fits a frame.
 struct FitStats {

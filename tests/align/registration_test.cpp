@@ -487,5 +487,34 @@ TEST(Registration, TemplateOfLowConfidenceHasItsRegulariserSoftened) {
   EXPECT_GT(softened_nodes, 3);
 }
 
+TEST(Registration, AFoldTheRefinementLeftTakesTheGraphsShapeBack) {
+  // The graph moved the capsule 10 cm along x; the refinement then moved every vertex 1 mm
+  // further and one vertex past its neighbour, folding the triangles around it. Unfolding
+  // gives the patch around the fold the graph's layout plus the refinement's displacement
+  // around it (here a constant 1 mm, so exactly) and touches nothing else.
+  const Mesh templ = remesh_to_vertex_count(
+      test::isosurface_of(capsule, {-0.3, -0.3, -0.8}, {0.3, 0.3, 0.8}, 0.01), 2000);
+  const TemplateModel model = build_template_model(templ, RegistrationOptions{});
+  std::vector<Vec3f> graph = templ.positions;
+  for (Vec3f& p : graph) p += Vec3f(0.1f, 0, 0);
+  const Vec3f offset(0.001f, 0, 0);
+  std::vector<Vec3f> refined = graph;
+  for (Vec3f& p : refined) p += offset;
+  const int v = 100, w = model.rings[v].front();
+  refined[v] = refined[v] + 2.0f * (refined[w] - refined[v]);
+  const std::size_t folds = folded_triangles(model, refined).size();
+  ASSERT_GT(folds, 0u);
+  std::vector<Vec3f> unfolded = refined;
+  unfold(model, graph, 2, &unfolded);
+  EXPECT_TRUE(folded_triangles(model, unfolded).empty());
+  for (std::size_t i = 0; i < graph.size(); ++i) {
+    EXPECT_LT((unfolded[i] - graph[i] - offset).norm(), 1e-5) << "vertex " << i;
+  }
+  // With rings < 0 it is off.
+  std::vector<Vec3f> kept = refined;
+  unfold(model, graph, -1, &kept);
+  EXPECT_EQ(kept, refined);
+}
+
 }  // namespace
 }  // namespace fourd::align
