@@ -770,8 +770,9 @@ std::vector<int> folded_triangles(const TemplateModel& model, const std::vector<
 
 void unfold(const TemplateModel& model, const std::vector<Vec3f>& graph_positions, int rings,
             std::vector<Vec3f>* positions) {
+  if (rings < 0) return;
   const std::vector<int> folds = folded_triangles(model, *positions);
-  if (folds.empty() || rings < 0) return;
+  if (folds.empty()) return;
   const int nv = static_cast<int>(positions->size());
   std::vector<int> index(nv, -1), patch;
   auto take = [&](int v) {
@@ -789,25 +790,21 @@ void unfold(const TemplateModel& model, const std::vector<Vec3f>& graph_position
       for (int w : model.rings[patch[k]]) take(w);
     }
   }
-  // sum_j w_ij (d_i - d_j) = 0 for the patch's vertices, d = x - graph position; d is the
-  // refinement's outside the patch.
+  // (L d)_i = 0 for the patch's vertices, d = x - graph position; d is the refinement's outside
+  // the patch. L is symmetric: column i holds row i.
+  const SparseMatrix l = laplacian(model);
   const int n = static_cast<int>(patch.size());
   std::vector<Eigen::Triplet<double>> triplets;
   Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(n, 3);
   for (int k = 0; k < n; ++k) {
-    const int i = patch[k];
-    double diagonal = 0;
-    for (std::size_t e = 0; e < model.rings[i].size(); ++e) {
-      const int j = model.rings[i][e];
-      const double w = model.ring_weights[i][e];
-      diagonal += w;
+    for (SparseMatrix::InnerIterator it(l, patch[k]); it; ++it) {
+      const int j = static_cast<int>(it.row());
       if (index[j] >= 0) {
-        triplets.emplace_back(k, index[j], -w);
+        triplets.emplace_back(k, index[j], it.value() + (j == patch[k] ? 1e-9 : 0.0));
       } else {
-        rhs.row(k) += w * ((*positions)[j] - graph_positions[j]).cast<double>().transpose();
+        rhs.row(k) -= it.value() * ((*positions)[j] - graph_positions[j]).cast<double>().transpose();
       }
     }
-    triplets.emplace_back(k, k, diagonal + 1e-9);
   }
   SparseMatrix a(n, n);
   a.setFromTriplets(triplets.begin(), triplets.end());
