@@ -39,17 +39,25 @@ void open_file(const std::filesystem::path& path) {
   }
 }
 
+std::string local_time(const char* format) {
+  const std::time_t now = std::time(nullptr);
+  std::tm tm{};
+  localtime_r(&now, &tm);
+  char buf[64];
+  const std::size_t n = std::strftime(buf, sizeof buf, format, &tm);
+  return std::string(buf, n);
+}
+
 void write(Level level, std::string_view message) {
   if (level == Level::kWarn) ++g_warnings;
-  std::time_t now = std::time(nullptr);
-  char stamp[32];
-  std::strftime(stamp, sizeof stamp, "%H:%M:%S", std::localtime(&now));
+  const std::string stamp = local_time("%H:%M:%S");
   std::lock_guard lock(g_mutex);
   const char* tag = level_tag(level);
   if (level == Level::kInfo) {
-    std::fprintf(stderr, "[%s] %.*s\n", stamp, static_cast<int>(message.size()), message.data());
+    std::fprintf(stderr, "[%s] %.*s\n", stamp.c_str(), static_cast<int>(message.size()),
+                 message.data());
   } else {
-    std::fprintf(stderr, "[%s] %s: %.*s\n", stamp, tag, static_cast<int>(message.size()),
+    std::fprintf(stderr, "[%s] %s: %.*s\n", stamp.c_str(), tag, static_cast<int>(message.size()),
                  message.data());
   }
   if (g_file.is_open()) {

@@ -20,6 +20,9 @@ void open_file(const std::filesystem::path& path);
 void write(Level level, std::string_view message);
 // Number of warnings written since start: stages report it at the end.
 std::size_t warning_count();
+// The local wall-clock time now, formatted by std::strftime (thread-safe, unlike
+// std::localtime).
+std::string local_time(const char* format = "%Y-%m-%d %H:%M:%S");
 
 template <typename... Args>
 void debug(fmt::format_string<Args...> f, Args&&... args) {

@@ -3,12 +3,12 @@
 #include <fmt/format.h>
 
 #include <cmath>
-#include <ctime>
 #include <exception>
 #include <tuple>
 
 #include "pipeline/core/error.h"
 #include "pipeline/core/files.h"
+#include "pipeline/core/log.h"
 
 namespace fourd::validate {
 namespace {
@@ -40,22 +40,13 @@ std::string format_value(double v) {
   return fmt::format("{:.6g}", v);
 }
 
-std::string local_time_now() {
-  std::time_t t = std::time(nullptr);
-  std::tm tm{};
-  localtime_r(&t, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%d %H:%M:%S", &tm);
-  return buf;
-}
-
 std::string report_markdown(const Session& session, const std::vector<StageReport>& reports) {
   std::string md = fmt::format("# Validation report: {}\n\n", session.config().name);
   md += fmt::format(
       "Written by fourd-validate on {}. Machine-readable numbers: [metrics.json](metrics.json), "
       "keys `<stage>.<metric>` or `<stage>.<input>.<metric>` where `<input>` says whether the "
       "stage ran on the previous stage's output (`pipeline`) or on ground truth (`oracle`).\n\n",
-      local_time_now());
+      log::local_time());
   for (const auto& r : reports) {
     md += fmt::format("## {}\n\n", r.stage);
     if (!r.error.empty()) {
