@@ -12,7 +12,6 @@
 #include <cstdio>
 #include <cstring>
 #include <memory>
-#include <ctime>
 #include <nlohmann/json.hpp>
 
 #include "pipeline/core/colmap_model.h"
@@ -141,15 +140,6 @@ std::string describe_difference(const char* what, const FileHashes& before, cons
                      total > examples.size() ? ", ..." : "");
 }
 
-std::string local_time_now() {
-  std::time_t t = std::time(nullptr);
-  std::tm tm{};
-  localtime_r(&t, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%d %H:%M:%S", &tm);
-  return buf;
-}
-
 // Whether a stage reading `inputs` reads one of `folders` (folder -> the stage that writes
 // it); `which` names that stage.
 bool reads_any(const std::vector<std::string>& inputs,
@@ -171,26 +161,42 @@ const std::vector<StageSpec>& stage_table() {
   // capture. Validate reads every stage's outputs plus the ground truth, and plays the
   // session's control scripts (play/) on the assets.
   static const std::vector<StageSpec> table = {
-      {"synth", {}, {"capture", "calibration", "ground_truth"}, false, {}},
-      {"segment", {"capture", "calibration"}, {"segment"}, false, {}, {}, {},
-       {"{take}/{camera}/{frame}.png"}},
+      {.name = "synth", .outputs = {"capture", "calibration", "ground_truth"}},
+      {.name = "segment",
+       .inputs = {"capture", "calibration"},
+       .outputs = {"segment"},
+       .frame_outputs = {"{take}/{camera}/{frame}.png"}},
       // Its per-frame record (.json) is written last and also for a frame that failed.
-      {"reconstruct", {"capture", "segment", "calibration"}, {"reconstruct"}, true, {}, {}, {},
-       {"{take}/{frame}.json"}},
+      {.name = "reconstruct",
+       .inputs = {"capture", "segment", "calibration"},
+       .outputs = {"reconstruct"},
+       .supports_oracle = true,
+       .frame_outputs = {"{take}/{frame}.json"}},
       // Split along its shape tree: a tree job, branch jobs, a finish job (stage_jobs).
-      {"align", {"reconstruct"}, {"align"}, true, {}, {}, {}, {}, /*tree_split=*/true},
-      {"timewarp", {"align"}, {"timewarp"}, true, {}},
-      {"motionspace", {"timewarp"}, {"motionspace"}, true, {}},
-      {"texture", {"align", "capture", "calibration"}, {"texture"}, true, {}},
-      {"graph", {"motionspace", "timewarp", "texture"}, {"graph", "asset"}, true, {}},
-      {"validate",
-       {"calibration", "capture", "ground_truth", "segment", "reconstruct", "align", "timewarp",
-        "motionspace", "texture", "graph", "asset", "oracle", "reconstruct_oracle",
-        "align_oracle", "timewarp_oracle", "motionspace_oracle", "texture_oracle",
-        "graph_oracle", "asset_oracle", kPlayFolder},
-       {"reports"},
-       false,
-       {}},
+      {.name = "align",
+       .inputs = {"reconstruct"},
+       .outputs = {"align"},
+       .supports_oracle = true,
+       .tree_split = true},
+      {.name = "timewarp", .inputs = {"align"}, .outputs = {"timewarp"}, .supports_oracle = true},
+      {.name = "motionspace",
+       .inputs = {"timewarp"},
+       .outputs = {"motionspace"},
+       .supports_oracle = true},
+      {.name = "texture",
+       .inputs = {"align", "capture", "calibration"},
+       .outputs = {"texture"},
+       .supports_oracle = true},
+      {.name = "graph",
+       .inputs = {"motionspace", "timewarp", "texture"},
+       .outputs = {"graph", "asset"},
+       .supports_oracle = true},
+      {.name = "validate",
+       .inputs = {"calibration", "capture", "ground_truth", "segment", "reconstruct", "align",
+                  "timewarp", "motionspace", "texture", "graph", "asset", "oracle",
+                  "reconstruct_oracle", "align_oracle", "timewarp_oracle", "motionspace_oracle",
+                  "texture_oracle", "graph_oracle", "asset_oracle", kPlayFolder},
+       .outputs = {"reports"}},
   };
   return table;
 }
@@ -535,30 +541,25 @@ std::vector<Job> stage_jobs(const StageSpec& stage, const CaptureIndex& capture,
   if (stage.tree_split) {
     if (branch_jobs < 1) throw UsageError("--branch-jobs must be at least 1");
     std::vector<Job> jobs;
-    Job tree{stage.name};
-    tree.tree = true;
-    tree.branches = branch_jobs;
-    jobs.push_back(tree);
+    jobs.push_back(Job{.stage = stage.name, .tree = true, .branches = branch_jobs});
     for (int k = 0; k < branch_jobs; ++k) {
-      Job branch{stage.name};
-      branch.branch = k;
-      branch.branches = branch_jobs;
-      jobs.push_back(branch);
+      jobs.push_back(Job{.stage = stage.name, .branch = k, .branches = branch_jobs});
     }
-    jobs.push_back(Job{stage.name, {}, true});
+    jobs.push_back(Job{.stage = stage.name, .finish = true});
     return jobs;
   }
-  if (!stage.per_frame()) return {Job{stage.name, {}, false}};
+  if (!stage.per_frame()) return {Job{.stage = stage.name}};
   if (frames_per_job < 0) throw UsageError("--frames-per-job must be 0 or more");
   std::vector<Job> jobs;
   for (const TakeCapture& take : capture.takes) {
     const int step = frames_per_job > 0 ? frames_per_job : take.frame_count;
     for (int first = 0; first < take.frame_count; first += step) {
-      Job job{stage.name, {take.name, {{first, std::min(first + step, take.frame_count) - 1}}}, false};
+      Job job{.stage = stage.name,
+              .selection = {take.name, {{first, std::min(first + step, take.frame_count) - 1}}}};
       jobs.push_back(std::move(job));
     }
   }
-  jobs.push_back(Job{stage.name, {}, true});
+  jobs.push_back(Job{.stage = stage.name, .finish = true});
   return jobs;
 }
 
@@ -757,7 +758,7 @@ RunResult run_pipeline(const fs::path& session_dir, const std::vector<StageSpec>
     record.fingerprint = std::move(fp);
     record.outputs = hash_folders(root, stage.outputs);
     record.output_bytes = folder_bytes(root, stage.outputs);
-    record.finished = local_time_now();
+    record.finished = log::local_time();
     record.seconds = event.seconds;
     record.cpu_seconds = event.usage.cpu_seconds;
     record.peak_rss_bytes = event.usage.peak_rss_bytes;

@@ -43,18 +43,20 @@ namespace fs = std::filesystem;
 using fourd::UsageError;
 
 // One stage of the pipeline and the session folders it reads and writes.
+// Members without a default of their own get {}, so that GCC does not warn about those a
+// designated initializer leaves out.
 struct StageSpec {
-  std::string name;                  // "segment"; its executable is fourd-<name>
-  std::vector<std::string> inputs;   // session sub-folders it reads
-  std::vector<std::string> outputs;  // sub-folders it writes; the first holds its record
-  bool supports_oracle = false;      // accepts --oracle (DESIGN "Oracle inputs")
-  fs::path executable;               // empty in stage_table(); set by built_stages()
-  std::vector<std::string> arguments;  // extra command-line arguments (oracle runs)
-  std::string options_stage;           // whose stages.<name> options it sees; empty: name
+  std::string name{};                    // "segment"; its executable is fourd-<name>
+  std::vector<std::string> inputs{};     // session sub-folders it reads
+  std::vector<std::string> outputs{};    // sub-folders it writes; the first holds its record
+  bool supports_oracle = false;          // accepts --oracle (DESIGN "Oracle inputs")
+  fs::path executable{};                 // empty in stage_table(); set by built_stages()
+  std::vector<std::string> arguments{};  // extra command-line arguments (oracle runs)
+  std::string options_stage{};           // whose stages.<name> options it sees; empty: name
   // A per-frame stage (runs as frame-range jobs, see stage_jobs): the files each frame's job
   // writes, relative to the first output folder, with {take}, {camera} and {frame} (000000)
   // standing for the frame's names. Empty: the stage is one job.
-  std::vector<std::string> frame_outputs;
+  std::vector<std::string> frame_outputs{};
   bool per_frame() const { return !frame_outputs.empty(); }
   // A stage split along a tree of frames (align): a --tree job that plans branch jobs, the
   // branch jobs, and a --finish job; see stage_jobs. Its jobs' files live in <output>/.jobs/.
@@ -161,8 +163,8 @@ std::string staleness(const fs::path& session_root, const StageSpec& stage,
 // stage; for a per-frame stage, one take's range of frames; or the --finish job that checks a
 // split stage's frames and writes its reports.
 struct Job {
-  std::string stage;         // the stage (or oracle variant) name
-  FrameSelection selection;  // a range job: one take, one range
+  std::string stage{};         // the stage (or oracle variant) name
+  FrameSelection selection{};  // a range job: one take, one range
   bool finish = false;
   // A tree-split stage's job: the tree job (tree), or branch job `branch` of `branches`.
   bool tree = false;
