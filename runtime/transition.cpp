@@ -91,41 +91,23 @@ int values_within(const TrellisSide& side, int steps) {
   return n;
 }
 
-// Source levels: t0 + a dt, wrapping for a cyclic space; a one-shot space's last level sits at
-// t = 1 (a shorter step) and the trellis stops there.
-void source_levels(const GraphSpace& space, double t0, double dt, int depth, TrellisSide* side) {
+// The time levels of one side of the trellis, wrapping for a cyclic space: the source's forward
+// from t0 (t0 + a dt), the target's backward from t1 (t1 - b dt). A one-shot space's last level
+// sits at its end (t = 1 forward, t = 0 backward: a shorter step) and the trellis stops there.
+void time_levels(const GraphSpace& space, double from, double dt, bool forward, int depth,
+                 TrellisSide* side) {
   int n = 0;
   for (int a = 0; a <= depth; ++a) {
-    double time = t0 + a * dt, span = a * dt;
+    double time = forward ? from + a * dt : from - a * dt, span = a * dt;
     bool last = false;
-    if (!space.cyclic() && time >= 1 - kTimeTolerance) {
-      time = 1;
-      span = std::max(0.0, 1 - t0);
+    if (!space.cyclic() && (forward ? time >= 1 - kTimeTolerance : time <= kTimeTolerance)) {
+      time = forward ? 1 : 0;
+      span = std::max(0.0, forward ? 1 - from : from);
       last = true;
     }
     side->time[n] = space.cyclic() ? wrap01(time) : time;
     side->span[n] = span;
     side->count[n] = values_within(*side, a);
-    ++n;
-    if (last) break;
-  }
-  side->num_columns = n;
-}
-
-// Target levels, backward from t1: t1 - b dt; a one-shot space stops at t = 0.
-void target_levels(const GraphSpace& space, double t1, double dt, int depth, TrellisSide* side) {
-  int n = 0;
-  for (int b = 0; b <= depth; ++b) {
-    double time = t1 - b * dt, span = b * dt;
-    bool last = false;
-    if (!space.cyclic() && time <= kTimeTolerance) {
-      time = 0;
-      span = t1;
-      last = true;
-    }
-    side->time[n] = space.cyclic() ? wrap01(time) : time;
-    side->span[n] = span;
-    side->count[n] = values_within(*side, b);
     ++n;
     if (last) break;
   }
@@ -205,7 +187,7 @@ TransitionPath TransitionSearch::search(const MotionGraph& graph, int edge,
   const double t1 = resolved_target_time(graph, to, options);
 
   fill_values(src, p0, parameter_step(src, options), depth, &source_);
-  source_levels(src, t0, dt, depth, &source_);
+  time_levels(src, t0, dt, /*forward=*/true, depth, &source_);
   source_.free_time = false;
   fill_latencies(&source_, source_.duration[0], dt, ft);
 
@@ -214,7 +196,7 @@ TransitionPath TransitionSearch::search(const MotionGraph& graph, int edge,
   if (target_.free_time) {
     target_phases(dt, &target_);
   } else {
-    target_levels(dst, t1, dt, depth, &target_);
+    time_levels(dst, t1, dt, /*forward=*/false, depth, &target_);
   }
   fill_latencies(&target_, target_.duration[0], dt, ft);
 
