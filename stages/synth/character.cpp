@@ -103,12 +103,12 @@ std::vector<std::vector<int>> vertex_neighbours(const Mesh& mesh) {
 }
 
 // Dense #V x #joints skinning weights. A vertex belongs to the joints whose primitives it is
-// close to: a softmax over the primitives' signed distances, so weights blend exactly where
-// the implicit surface blends primitives (elbows, knees, shoulders, hips) and nowhere else;
-// then a few rounds of smoothing over the mesh soften the transitions.
-Eigen::MatrixXd dense_weights(const BodyModel& body, const Mesh& mesh) {
+// close to: a softmax over the primitives' signed distances, `blend` x the body's smooth-union
+// radius wide, so weights blend where the implicit surface blends primitives (elbows, knees,
+// shoulders, hips); then `rounds` of smoothing over the mesh soften the transitions.
+Eigen::MatrixXd dense_weights(const BodyModel& body, const Mesh& mesh, double blend, int rounds) {
   const std::size_t nv = mesh.num_vertices(), nj = body.skeleton.size();
-  const double sigma = 1.2 * body.blend_radius;
+  const double sigma = blend * body.blend_radius;
   Eigen::MatrixXd w = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(nv), static_cast<Eigen::Index>(nj));
   std::vector<double> d(body.primitives.size());
   for (std::size_t v = 0; v < nv; ++v) {
@@ -125,7 +125,7 @@ Eigen::MatrixXd dense_weights(const BodyModel& body, const Mesh& mesh) {
     w.row(static_cast<Eigen::Index>(v)) /= w.row(static_cast<Eigen::Index>(v)).sum();
   }
   const auto adj = vertex_neighbours(mesh);
-  for (int round = 0; round < 4; ++round) {
+  for (int round = 0; round < rounds; ++round) {
     Eigen::MatrixXd next = w;
     for (std::size_t v = 0; v < nv; ++v) {
       Eigen::RowVectorXd mean = Eigen::RowVectorXd::Zero(static_cast<Eigen::Index>(nj));
@@ -209,7 +209,8 @@ Character make_procedural_character(const CharacterOptions& options, std::uint64
   character.skeleton = body.skeleton;
   SkinnedMesh& skin = character.skin;
 
-  const Eigen::MatrixXd dense = dense_weights(body, mesh);
+  const Eigen::MatrixXd dense =
+      dense_weights(body, mesh, options.skin_blend, options.skin_smoothing);
   pick_influences(dense, skin);
   const auto charts = vertex_charts(body, dense);
   mesh.uvs.resize(mesh.num_vertices());

@@ -171,6 +171,29 @@ TEST(Character, SkinWeightsAreValidAndSumToOne) {
   EXPECT_EQ(used.size(), static_cast<std::size_t>(joints));
 }
 
+// Wider, smoother skinning blends more of the skin between bones (the armpit's skin then
+// stretches less as the arm rises); the mesh and the skeleton stay the same.
+TEST(Character, WiderSkinBlendBlendsMoreOfTheSkin) {
+  CharacterOptions wide;
+  wide.skin_blend = 3;
+  wide.skin_smoothing = 20;
+  const Character& narrow_character = default_character();
+  const Character wide_character = make_procedural_character(wide, 1);
+  ASSERT_EQ(wide_character.skin.rest.positions, narrow_character.skin.rest.positions);
+  auto blended = [](const Character& c) {
+    int n = 0;
+    for (const Eigen::Vector4f& w : c.skin.weights) n += w.maxCoeff() < 0.9f;
+    return n;
+  };
+  // At the defaults about half the vertices have no weight of 0.9 (the smoothing); wider, more
+  // than a fifth of the mesh more.
+  const int vertices = static_cast<int>(wide_character.skin.weights.size());
+  EXPECT_GT(blended(wide_character), blended(narrow_character) + vertices / 5);
+  for (const Eigen::Vector4f& w : wide_character.skin.weights) {
+    EXPECT_NEAR(w.sum(), 1.0f, 1e-6f);
+  }
+}
+
 TEST(Character, RestPoseSkinningReproducesRestMesh) {
   const Character& c = default_character();
   const Mesh posed = skin_mesh(c.skin, forward_kinematics(c.skeleton, rest_pose(c.skeleton)));
