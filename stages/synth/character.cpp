@@ -102,13 +102,27 @@ std::vector<std::vector<int>> vertex_neighbours(const Mesh& mesh) {
   return adj;
 }
 
+// The bones where the limbs join the trunk.
+bool joins_trunk(const std::string& joint) {
+  for (const char* prefix : {"pelvis", "spine", "chest", "clavicle", "upper_arm", "thigh"}) {
+    if (joint.rfind(prefix, 0) == 0) return true;
+  }
+  return false;
+}
+
 // Dense #V x #joints skinning weights. A vertex belongs to the joints whose primitives it is
-// close to: a softmax over the primitives' signed distances, `blend` x the body's smooth-union
-// radius wide, so weights blend where the implicit surface blends primitives (elbows, knees,
-// shoulders, hips); then `rounds` of smoothing over the mesh soften the transitions.
-Eigen::MatrixXd dense_weights(const BodyModel& body, const Mesh& mesh, double blend, int rounds) {
+// close to: a softmax over the primitives' signed distances, options.skin_blend x the body's
+// smooth-union radius wide (trunk_skin_blend for the bones that join the trunk), so weights
+// blend where the implicit surface blends primitives (elbows, knees, shoulders, hips); then
+// skin_smoothing rounds of averaging over the mesh soften the transitions.
+Eigen::MatrixXd dense_weights(const BodyModel& body, const Mesh& mesh,
+                              const CharacterOptions& options) {
   const std::size_t nv = mesh.num_vertices(), nj = body.skeleton.size();
-  const double sigma = blend * body.blend_radius;
+  std::vector<double> sigma(nj);
+  for (std::size_t j = 0; j < nj; ++j) {
+    sigma[j] = (joins_trunk(body.skeleton.names[j]) ? options.trunk_skin_blend : options.skin_blend) *
+               body.blend_radius;
+  }
   Eigen::MatrixXd w = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(nv), static_cast<Eigen::Index>(nj));
   std::vector<double> d(body.primitives.size());
   for (std::size_t v = 0; v < nv; ++v) {
@@ -120,12 +134,12 @@ Eigen::MatrixXd dense_weights(const BodyModel& body, const Mesh& mesh, double bl
     }
     const double dmin = *std::min_element(joint_d.begin(), joint_d.end());
     for (std::size_t j = 0; j < nj; ++j) {
-      w(static_cast<Eigen::Index>(v), static_cast<Eigen::Index>(j)) = std::exp(-(joint_d[j] - dmin) / sigma);
+      w(static_cast<Eigen::Index>(v), static_cast<Eigen::Index>(j)) = std::exp(-(joint_d[j] - dmin) / sigma[j]);
     }
     w.row(static_cast<Eigen::Index>(v)) /= w.row(static_cast<Eigen::Index>(v)).sum();
   }
   const auto adj = vertex_neighbours(mesh);
-  for (int round = 0; round < rounds; ++round) {
+  for (int round = 0; round < options.skin_smoothing; ++round) {
     Eigen::MatrixXd next = w;
     for (std::size_t v = 0; v < nv; ++v) {
       Eigen::RowVectorXd mean = Eigen::RowVectorXd::Zero(static_cast<Eigen::Index>(nj));
@@ -209,8 +223,7 @@ Character make_procedural_character(const CharacterOptions& options, std::uint64
   character.skeleton = body.skeleton;
   SkinnedMesh& skin = character.skin;
 
-  const Eigen::MatrixXd dense =
-      dense_weights(body, mesh, options.skin_blend, options.skin_smoothing);
+  const Eigen::MatrixXd dense = dense_weights(body, mesh, options);
   pick_influences(dense, skin);
   const auto charts = vertex_charts(body, dense);
   mesh.uvs.resize(mesh.num_vertices());

@@ -74,11 +74,14 @@ struct CharacterOptions {
   int target_vertices = 5000;  // vertex count of the mesh (met within about 10 %)
   int texture_size = 1024;     // texture width and height [px]
   // Skinning: the width of the weights' blend between two bones, as a multiple of the body's
-  // smooth-union radius (12 mm at 1.75 m), and rounds of averaging the weights over the mesh's
-  // neighbours. Narrow blends stretch the skin inside a bending joint many times over: at the
-  // defaults an armpit's skin stretches 7.8x as the arm rises overhead; at 3 and 20, 2.6x (but
-  // a foot's sole then no longer stays flat on the floor through a stance).
+  // smooth-union radius (12 mm at 1.75 m); the same for the bones where the limbs join the trunk
+  // (pelvis, spine, chest, clavicles, upper arms, thighs); rounds of averaging the weights over
+  // the mesh's neighbours. Narrow blends stretch the skin inside a bending joint many times
+  // over: at the defaults an armpit's skin stretches 7.8x as the arm rises overhead; with
+  // trunk_skin_blend 3, 2.8x. Wide blends everywhere (skin_blend 3, skin_smoothing 20: 2.6x)
+  // also bend a foot's sole, which then no longer stays flat on the floor through a stance.
   double skin_blend = 1.2;
+  double trunk_skin_blend = 1.2;
   int skin_smoothing = 4;
 
   template <class V>
@@ -92,6 +95,11 @@ struct CharacterOptions {
       "skinning: width of the weights' blend between two bones, as a multiple of the body's "
       "smooth-union radius (12 mm at 1.75 m tall); narrow blends stretch the skin inside a "
       "bending joint many times over",
+      Range{0.1, 20});
+    v("trunk_skin_blend", trunk_skin_blend,
+      "skinning: the same for the bones where the limbs join the trunk (pelvis, spine, chest, "
+      "clavicles, upper arms, thighs): wider there, an armpit or groin stretches less as the limb "
+      "rises",
       Range{0.1, 20});
     v("skin_smoothing", skin_smoothing,
       "skinning: rounds of averaging the weights over each vertex's neighbours", Range{0, 200});

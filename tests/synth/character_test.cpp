@@ -173,6 +173,12 @@ TEST(Character, SkinWeightsAreValidAndSumToOne) {
 
 // Wider, smoother skinning blends more of the skin between bones (the armpit's skin then
 // stretches less as the arm rises); the mesh and the skeleton stay the same.
+int blended_vertices(const Character& c) {
+  int n = 0;
+  for (const Eigen::Vector4f& w : c.skin.weights) n += w.maxCoeff() < 0.9f;
+  return n;
+}
+
 TEST(Character, WiderSkinBlendBlendsMoreOfTheSkin) {
   CharacterOptions wide;
   wide.skin_blend = 3;
@@ -180,18 +186,36 @@ TEST(Character, WiderSkinBlendBlendsMoreOfTheSkin) {
   const Character& narrow_character = default_character();
   const Character wide_character = make_procedural_character(wide, 1);
   ASSERT_EQ(wide_character.skin.rest.positions, narrow_character.skin.rest.positions);
-  auto blended = [](const Character& c) {
-    int n = 0;
-    for (const Eigen::Vector4f& w : c.skin.weights) n += w.maxCoeff() < 0.9f;
-    return n;
-  };
   // At the defaults about half the vertices have no weight of 0.9 (the smoothing); wider, more
   // than a fifth of the mesh more.
   const int vertices = static_cast<int>(wide_character.skin.weights.size());
-  EXPECT_GT(blended(wide_character), blended(narrow_character) + vertices / 5);
+  EXPECT_GT(blended_vertices(wide_character), blended_vertices(narrow_character) + vertices / 5);
   for (const Eigen::Vector4f& w : wide_character.skin.weights) {
     EXPECT_NEAR(w.sum(), 1.0f, 1e-6f);
   }
+}
+
+// A wider blend where the limbs join the trunk leaves the hands and feet as they were.
+TEST(Character, WiderTrunkSkinBlendLeavesHandsAndFeetAlone) {
+  CharacterOptions trunk;
+  trunk.trunk_skin_blend = 3;
+  const Character& narrow_character = default_character();
+  const Character trunk_character = make_procedural_character(trunk, 1);
+  EXPECT_GT(blended_vertices(trunk_character), blended_vertices(narrow_character) + 100);
+  const Skeleton& sk = narrow_character.skeleton;
+  int far_from_trunk = 0;
+  for (std::size_t v = 0; v < narrow_character.skin.weights.size(); ++v) {
+    const int j = narrow_character.skin.joints[v][0];  // the largest weight's joint
+    const std::string& name = sk.names[static_cast<std::size_t>(j)];
+    if (name.rfind("hand", 0) != 0 && name.rfind("foot", 0) != 0 && name.rfind("toe", 0) != 0) {
+      continue;
+    }
+    ++far_from_trunk;
+    EXPECT_EQ(trunk_character.skin.joints[v][0], j) << "vertex " << v;
+    EXPECT_NEAR(trunk_character.skin.weights[v][0], narrow_character.skin.weights[v][0], 0.02f)
+        << "vertex " << v << " (" << name << ")";
+  }
+  EXPECT_GT(far_from_trunk, 500);
 }
 
 TEST(Character, RestPoseSkinningReproducesRestMesh) {
