@@ -660,7 +660,8 @@ class TreeRegistration {
       passed.push_back(i);
     }
     const std::size_t chosen =
-        least_stretched_close_fit(stats, options_.registration.stretch_tolerance);
+        least_stretched_close_fit(stats, options_.registration.stretch_tolerance,
+                                  options_.registration.stretch_margin);
     if (chosen == 0) return false;
     const std::size_t i = passed[chosen - 1];
     reg_.fits[k] = std::move(*tries[i]);

@@ -83,7 +83,8 @@ struct AlignOptions {
       "a fit that passed with more than this x the median rms of the aligned frames is "
       "registered again from its neighbours in time and up to reparent_attempts other similar "
       "frames; of its fits, the least stretched of those within registration.stretch_tolerance "
-      "x the closest is kept; 0: never",
+      "x the closest is kept (if below registration.stretch_margin x the closest's stretch); "
+      "0: never",
       Range{0, 1000});
     v("exclude_non_manifold", exclude_non_manifold, "exclude non-manifold frames");
     v("keep_failed_fits", keep_failed_fits,

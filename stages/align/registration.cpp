@@ -1085,13 +1085,19 @@ double two_sided_rms(const FitStats& s) {
   return std::sqrt(s.surface_rms * s.surface_rms + s.reverse_rms * s.reverse_rms);
 }
 
-std::size_t least_stretched_close_fit(const std::vector<FitStats>& fits, double stretch_tolerance) {
-  double closest = std::numeric_limits<double>::infinity();
-  for (const FitStats& f : fits) closest = std::min(closest, two_sided_rms(f));
-  std::size_t chosen = fits.size();
+std::size_t least_stretched_close_fit(const std::vector<FitStats>& fits, double stretch_tolerance,
+                                      double stretch_margin) {
+  std::size_t closest = 0;
+  for (std::size_t i = 1; i < fits.size(); ++i) {
+    if (two_sided_rms(fits[i]) < two_sided_rms(fits[closest])) closest = i;
+  }
+  std::size_t chosen = closest;
   for (std::size_t i = 0; i < fits.size(); ++i) {
-    if (two_sided_rms(fits[i]) > stretch_tolerance * closest) continue;
-    if (chosen == fits.size() || fits[i].stretch_rms < fits[chosen].stretch_rms) chosen = i;
+    if (two_sided_rms(fits[i]) > stretch_tolerance * two_sided_rms(fits[closest])) continue;
+    if (fits[i].stretch_rms < stretch_margin * fits[closest].stretch_rms &&
+        fits[i].stretch_rms < fits[chosen].stretch_rms) {
+      chosen = i;
+    }
   }
   return chosen;
 }
@@ -1287,8 +1293,9 @@ DeformationState register_to_surface(const TemplateModel& model, const Deformati
     }
   }
   if (closer.empty()) return std::move(candidates[0].state);
-  return std::move(
-      candidates[closer[least_stretched_close_fit(closer_stats, options.stretch_tolerance)]].state);
+  const std::size_t chosen =
+      least_stretched_close_fit(closer_stats, options.stretch_tolerance, options.stretch_margin);
+  return std::move(candidates[closer[chosen]].state);
 }
 
 FitStats evaluate_fit(const TemplateModel& model, const std::vector<Vec3f>& positions,

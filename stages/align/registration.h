@@ -79,7 +79,8 @@ struct RegistrationOptions {
   double unconfident_stiffness = 0.2;  // regulariser factor where the template's own surface
                                        // had confidence 0 (its root frame's membranes)
   double stretch_tolerance = 1.5;  // retries within this x the closest fit's both-ways rms:
-                                   // the least stretched is kept
+                                   // the least stretched is kept ...
+  double stretch_margin = 0.9;     // ... if it is stretched less than this x the closest one
   ExtremityOptions extremities;
 
   template <class V>
@@ -164,8 +165,11 @@ struct RegistrationOptions {
       Range{0, 1});
     v("stretch_tolerance", stretch_tolerance,
       "of the retries that fit within this x the closest one's both-ways rms, the least "
-      "stretched is kept",
+      "stretched is kept ...",
       Range{1, 100});
+    v("stretch_margin", stretch_margin,
+      "... when its stretch is below this x the closest one's (a near tie keeps the closer fit)",
+      Range{0, 1});
     v("extremities", extremities, "tips of the body (geodesic extremities) used as landmarks");
   }
   void check() const;
@@ -249,10 +253,12 @@ FitStats evaluate_fit(const TemplateModel& model, const std::vector<Vec3f>& posi
 double two_sided_rms(const FitStats& s);
 
 // Of several fits of one frame (not empty), the one to keep: of the fits whose both-ways rms is
-// within `stretch_tolerance` x the closest's, the least stretched. A limb on the other limb or
-// bent at the wrong joint can cover the frame about as closely, but only by stretching the
-// template.
-std::size_t least_stretched_close_fit(const std::vector<FitStats>& fits, double stretch_tolerance);
+// within `stretch_tolerance` x the closest's, the least stretched, if its stretch is below
+// `stretch_margin` x the closest's; else the closest. A limb on the other limb or bent at the
+// wrong joint can cover the frame about as closely, but only by stretching the template; two
+// fits stretched about as much are told apart by how closely they fit.
+std::size_t least_stretched_close_fit(const std::vector<FitStats>& fits, double stretch_tolerance,
+                                      double stretch_margin);
 
 // Rigid point-to-plane ICP of `points` (with their unit normals) onto the target; returns the
 // motion to apply to them.

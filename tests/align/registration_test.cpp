@@ -343,7 +343,8 @@ TEST(Registration, ALegBentAtTheKneeIsFollowedAlongTheFrame) {
 }
 
 // Of fits about as close as the closest (both-ways rms within the tolerance), the least
-// stretched is kept; a much closer fit beats a less stretched one outside the tolerance.
+// stretched is kept if it is clearly less stretched than the closest; a much closer fit beats a
+// less stretched one outside the tolerance, and a near tie in stretch keeps the closest.
 TEST(Registration, TheLeastStretchedOfTheAboutClosestFitsIsKept) {
   auto fit = [](double rms, double reverse, double stretch) {
     FitStats s;
@@ -355,10 +356,15 @@ TEST(Registration, TheLeastStretchedOfTheAboutClosestFitsIsKept) {
   // Both-ways rms 5, 5.1 and 7.6 mm (the last beyond 1.5 x the closest).
   const std::vector<FitStats> fits = {fit(0.003, 0.004, 0.06), fit(0.0051, 0, 0.05),
                                       fit(0.0076, 0, 0.01)};
-  EXPECT_EQ(least_stretched_close_fit(fits, 1.5), 1u);
-  EXPECT_EQ(least_stretched_close_fit(fits, 1.6), 2u);
-  EXPECT_EQ(least_stretched_close_fit(fits, 1.0), 0u);
-  EXPECT_EQ(least_stretched_close_fit({fits[2]}, 1.5), 0u);
+  EXPECT_EQ(least_stretched_close_fit(fits, 1.5, 1.0), 1u);
+  EXPECT_EQ(least_stretched_close_fit(fits, 1.6, 1.0), 2u);
+  EXPECT_EQ(least_stretched_close_fit(fits, 1.0, 1.0), 0u);
+  EXPECT_EQ(least_stretched_close_fit({fits[2]}, 1.5, 1.0), 0u);
+  // 0.05 is 0.83 x the closest's 0.06: kept under a margin of 0.9, not of 0.8.
+  EXPECT_EQ(least_stretched_close_fit(fits, 1.5, 0.9), 1u);
+  EXPECT_EQ(least_stretched_close_fit(fits, 1.5, 0.8), 0u);
+  // The closest need not come first.
+  EXPECT_EQ(least_stretched_close_fit({fits[1], fits[0]}, 1.5, 0.8), 1u);
 }
 
 TEST(Registration, TheTemplatesCreasesAreSoftened) {
