@@ -166,7 +166,18 @@ FootState free_foot(const Vector3d& ankle, double yaw, double pitch, double toe_
   s.ankle = ankle;
   s.rotation = rot_z(yaw) * rot_y(-pitch);
   s.toe_rotation = s.rotation * rot_y(-toe_bend);
+  s.in_air = true;
   return s;
+}
+
+Matrix3d ankle_range_turn(const Vector3d& up, const Vector3d& forward) {
+  const Vector3d axis = up.cross(forward);
+  if (axis.norm() < 1e-9) return Matrix3d::Identity();
+  const double angle = std::atan2(axis.norm(), up.dot(forward));  // 90 deg: neutral
+  const double deg = M_PI / 180;
+  const double within =
+      std::clamp(angle, (90 - kMaxDorsiflexionDeg) * deg, (90 + kMaxPlantarflexionDeg) * deg);
+  return Eigen::AngleAxisd(within - angle, axis.normalized()).toRotationMatrix();
 }
 
 double max_pelvis_height(const Rig& rig, const Vector2d& pelvis_xy, const Matrix3d& pelvis_rotation,
@@ -193,8 +204,13 @@ void solve_legs(const Rig& rig, const std::array<FootState, 2>& feet, WorldPose&
                                        -Vector3d::UnitZ(), Vector3d::UnitX());
     pose.rotation[static_cast<std::size_t>(rig.thigh[i])] = leg.upper;
     pose.rotation[static_cast<std::size_t>(rig.shin[i])] = leg.lower;
-    pose.rotation[static_cast<std::size_t>(rig.foot[i])] = feet[i].rotation;
-    pose.rotation[static_cast<std::size_t>(rig.toe[i])] = feet[i].toe_rotation;
+    // A foot in the air turns no further than the ankle allows (a heel kicked up behind in a
+    // run with the foot kept level would fold the foot under the shin).
+    const Matrix3d turn = feet[i].in_air ? ankle_range_turn(leg.lower * Vector3d::UnitZ(),
+                                                            feet[i].rotation * Vector3d::UnitX())
+                                         : Matrix3d::Identity();
+    pose.rotation[static_cast<std::size_t>(rig.foot[i])] = turn * feet[i].rotation;
+    pose.rotation[static_cast<std::size_t>(rig.toe[i])] = turn * feet[i].toe_rotation;
   }
 }
 

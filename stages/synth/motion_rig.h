@@ -78,13 +78,23 @@ struct FootState {
   Vector3d ankle;
   Matrix3d rotation;        // world rotation of the foot joint
   Matrix3d toe_rotation;    // world rotation of the toe joint
+  bool in_air = false;      // free to turn within the ankle's range (solve_legs)
 };
 FootState planted_foot(const Rig& rig, const Vector2d& ground, double yaw, double pitch);
-// A foot in the air at `ankle`, pitch about its own heading, toes bent up by toe_bend.
+// A foot in the air at `ankle`, pitch about its own heading, toes bent up by toe_bend (the
+// pitch is the world's; solve_legs keeps it within the ankle's range relative to the shin).
 FootState free_foot(const Vector3d& ankle, double yaw, double pitch, double toe_bend);
 
 // The highest pelvis height at which both hips reach their ankles with legs at most
 // `fraction` of their full length. -infinity if a foot is out of reach at any height.
+// The ankle's range of motion from its neutral (foot perpendicular to the shin), human:
+// dorsiflexion (toes towards the shin) up to 25 deg, plantarflexion up to 50 deg.
+constexpr double kMaxDorsiflexionDeg = 25, kMaxPlantarflexionDeg = 50;
+// The turn that brings a foot pointing along `forward` within that range of a shin pointing
+// along `up` (ankle towards knee), about the axis perpendicular to both; identity when it is
+// within (or the two are parallel).
+Matrix3d ankle_range_turn(const Vector3d& up, const Vector3d& forward);
+
 double max_pelvis_height(const Rig& rig, const Vector2d& pelvis_xy, const Matrix3d& pelvis_rotation,
                          const std::array<Vector3d, 2>& ankles, double fraction);
 

@@ -232,6 +232,36 @@ TEST(Motion, RunHasFlightPhasesAndExactSpeed) {
   EXPECT_LT(r.cycle_frames, w.cycle_frames);
 }
 
+// A foot in the air stays within the ankle's range relative to its shin (dorsiflexed at most
+// 25 deg, plantarflexed at most 50 deg): a running heel kicked up behind does not fold the foot
+// flat under the shin. The angle is between the foot's forward axis and the direction from ankle
+// to knee (90 deg: neutral).
+TEST(Motion, FeetInTheAirStayWithinTheAnklesRange) {
+  const Skeleton& sk = performer().skeleton;
+  for (const MotionSpec& spec : {walk(1.3), run(3.5), jump(1.2, 0.5)}) {
+    const MotionClip clip = generate_motion(sk, spec, kFps);
+    double lowest = 180, highest = 0;
+    int in_air = 0;
+    for (std::size_t f = 0; f < clip.poses.size(); ++f) {
+      const auto world = forward_kinematics(sk, clip.poses[f]);
+      for (const std::string side : {"l", "r"}) {
+        const auto& foot = world[static_cast<std::size_t>(sk.find("foot_" + side))];
+        const auto& knee = world[static_cast<std::size_t>(sk.find("shin_" + side))];
+        if (foot.translation().z() < 0.2) continue;  // on or near the floor
+        ++in_air;
+        const Eigen::Vector3d up = (knee.translation() - foot.translation()).normalized();
+        const Eigen::Vector3d forward = foot.linear() * Eigen::Vector3d::UnitX();
+        const double angle = std::acos(std::clamp(up.dot(forward), -1.0, 1.0)) * 180 / M_PI;
+        lowest = std::min(lowest, angle);
+        highest = std::max(highest, angle);
+      }
+    }
+    EXPECT_GT(in_air, 2) << spec.kind;
+    EXPECT_GE(lowest, 90 - 25 - 0.01) << spec.kind;
+    EXPECT_LE(highest, 90 + 50 + 0.01) << spec.kind;
+  }
+}
+
 TEST(Motion, TurnFollowsACircularArcAtTheTurnRate) {
   for (double rate : {45.0, -30.0}) {
     MotionSpec spec = turn(1.0, rate);
