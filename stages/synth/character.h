@@ -77,11 +77,12 @@ struct CharacterOptions {
   // smooth-union radius (12 mm at 1.75 m); the same for the bones where the limbs join the trunk
   // (pelvis, spine, chest, clavicles, upper arms, thighs); rounds of averaging the weights over
   // the mesh's neighbours. Narrow blends stretch the skin inside a bending joint many times
-  // over: at the defaults an armpit's skin stretches 7.8x as the arm rises overhead; with
-  // trunk_skin_blend 3, 2.8x. Wide blends everywhere (skin_blend 3, skin_smoothing 20: 2.6x)
-  // also bend a foot's sole, which then no longer stays flat on the floor through a stance.
+  // over: with trunk_skin_blend 1.2 (as narrow as elsewhere) an armpit's skin stretches 7.8x as
+  // the arm rises overhead; at the default 3, 2.8x. Wide blends everywhere (skin_blend 3,
+  // skin_smoothing 20: 2.6x) also bend a foot's sole, which then no longer stays flat on the
+  // floor through a stance.
   double skin_blend = 1.2;
-  double trunk_skin_blend = 1.2;
+  double trunk_skin_blend = 3;
   int skin_smoothing = 4;
 
   template <class V>
