@@ -58,6 +58,17 @@ need("transitions.pipeline.precomputed10_latency_s", 0.0, 5.0)
 print("metrics ok")
 PY
 
+echo "== no aligned triangle turned over (align's own count: against the template's local rotation)"
+python3 - "$work/align/report.json" <<'PY'
+import json, sys
+r = json.load(open(sys.argv[1]))
+assert r["frames"] > 0 and r["aligned"] == r["frames"], f"aligned {r['aligned']} of {r['frames']} frames"
+assert r["flipped_triangles"] == 0, f"{r['flipped_triangles']} flipped triangles after registration"
+flipped = [f"{p['take']}/{p['frame']}" for p in r["per_frame"] if p["flipped_triangles"] > 0]
+assert not flipped, f"frames with flipped triangles: {flipped}"
+print(f"{r['frames']} frames aligned, no flipped triangles")
+PY
+
 echo "== the runtime follows the sample's paths (played by validation on both assets)"
 python3 - "$work/reports/metrics.json" <<'PY'
 import json, sys
