@@ -65,5 +65,5 @@ if [ "$what" != --unit ]; then
   test -f "$work/reports/metrics.json" || { echo "no $work/reports/metrics.json"; exit 1; }
   out=$(build-sanitize/bin/fourd run "$work" 2>&1)
   echo "$out"
-  echo "$out" | grep -q "ran 0 stage(s)" || { echo "the second run reran stages"; exit 1; }
+  grep -q "ran 0 stage(s)" <<< "$out" || { echo "the second run reran stages"; exit 1; }
 fi

@@ -30,7 +30,7 @@ expect_failure() {  # expected exit code, text the message must contain, command
   set -e
   echo "$out"
   [ "$status" -eq "$code" ] || { echo "exit $status, expected $code"; exit 1; }
-  echo "$out" | grep -qF -- "$text" || { echo "the message does not say '$text'"; exit 1; }
+  grep -qF -- "$text" <<< "$out" || { echo "the message does not say '$text'"; exit 1; }
 }
 head -c 5000 "$asset" > "$work/truncated.fourd"
 expect_failure 4 "$work/truncated.fourd" "$bin/fourd-export" "$work/truncated.fourd" -o "$work/t.glb"

@@ -117,7 +117,7 @@ PY
 echo "== second run skips unchanged stages"
 out=$("$bin/fourd" run "$work" 2>&1)
 echo "$out"
-echo "$out" | grep -q "ran 0 stage(s)" || { echo "the second run reran stages"; exit 1; }
+grep -q "ran 0 stage(s)" <<< "$out" || { echo "the second run reran stages"; exit 1; }
 
 echo "== determinism: same seed, same bytes"
 mkdir -p "$work/again"

@@ -145,13 +145,13 @@ for cam in "$s"/segment/walk_slow/*/; do cp "$work/black.png" "$cam/000002.png";
 out=$("${smk[@]}" --cores 2 --until reconstruct_finish 2>&1) || { echo "$out"; exit 1; }
 echo "$out" | grep "fourd: reconstruct: take walk_slow frame 2 failed" || {
   echo "FAILED: the failed frame was not reported"; echo "$out"; exit 1; }
-echo "$out" | grep -q "log: logs/reconstruct.walk_slow.0-" || { echo "FAILED: no log named"; exit 1; }
+grep -q "log: logs/reconstruct.walk_slow.0-" <<< "$out" || { echo "FAILED: no log named"; exit 1; }
 # A job whose every frame fails fails the workflow, which prints the stage's log.
 for f in "$s"/segment/walk_slow/*/0000*.png; do cp "$work/black.png" "$f"; done
 rc=0
 out=$("${smk[@]}" --cores 2 --until reconstruct_finish 2>&1) || rc=$?
 [ "$rc" != 0 ] || { echo "FAILED: a job without any reconstructable frame passed"; exit 1; }
-echo "$out" | grep -q "no frame could be reconstructed" || {
+grep -q "no frame could be reconstructed" <<< "$out" || {
   echo "FAILED: the stage's log was not shown"; echo "$out"; exit 1; }
 echo "  a job with no reconstructable frame fails the workflow; its log is shown"
 echo "workflow ok"
