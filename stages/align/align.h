@@ -41,7 +41,7 @@ struct AlignOptions {
   double max_uncovered_fraction = 0.05;  // ... or leaving more of the frame uncovered
   double far_edge_factor = 4.0;   // tree edges longer than this x the median are flagged
   int reparent_attempts = 3;      // other parents tried for a frame whose registration failed
-  double outlier_rms_factor = 3;   // a passed fit with more than this x the median rms is
+  double outlier_rms_factor = 2;   // a passed fit with more than this x the median rms is
                                      // registered again from other parents (0: never)
   bool exclude_non_manifold = true;  // non-manifold frames are excluded (else flagged only)
   bool keep_failed_fits = true;      // a frame whose every fit failed keeps its best, flagged
