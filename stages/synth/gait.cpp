@@ -16,7 +16,6 @@ namespace fourd::synth::detail {
 namespace {
 
 constexpr double kGravity = 9.81;
-constexpr double kDeg = M_PI / 180;
 constexpr double kNominalLeg = 0.835;  // hip-to-ankle length of the 1.75 m performer [m]
 
 struct Gait {

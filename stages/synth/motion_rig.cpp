@@ -36,6 +36,22 @@ Vector3d perpendicular(const Vector3d& u) {
   return u.cross(other).normalized();
 }
 
+// The ankle's range of motion from its neutral (foot perpendicular to the shin), human:
+// dorsiflexion (toes towards the shin) up to 25 deg, plantarflexion up to 50 deg.
+constexpr double kMaxDorsiflexionDeg = 25, kMaxPlantarflexionDeg = 50;
+
+// The turn that brings a foot pointing along `forward` within that range of a shin pointing
+// along `up` (ankle towards knee), about the axis perpendicular to both; identity when it is
+// within (or the two are parallel).
+Matrix3d ankle_range_turn(const Vector3d& up, const Vector3d& forward) {
+  const Vector3d axis = up.cross(forward);
+  if (axis.norm() < 1e-9) return Matrix3d::Identity();
+  const double angle = std::atan2(axis.norm(), up.dot(forward));  // 90 deg: neutral
+  const double within =
+      std::clamp(angle, (90 - kMaxDorsiflexionDeg) * kDeg, (90 + kMaxPlantarflexionDeg) * kDeg);
+  return Eigen::AngleAxisd(within - angle, axis.normalized()).toRotationMatrix();
+}
+
 }  // namespace
 
 Matrix3d rot_x(double a) { return Eigen::AngleAxisd(a, Vector3d::UnitX()).toRotationMatrix(); }
@@ -168,16 +184,6 @@ FootState free_foot(const Vector3d& ankle, double yaw, double pitch, double toe_
   s.toe_rotation = s.rotation * rot_y(-toe_bend);
   s.in_air = true;
   return s;
-}
-
-Matrix3d ankle_range_turn(const Vector3d& up, const Vector3d& forward) {
-  const Vector3d axis = up.cross(forward);
-  if (axis.norm() < 1e-9) return Matrix3d::Identity();
-  const double angle = std::atan2(axis.norm(), up.dot(forward));  // 90 deg: neutral
-  const double deg = M_PI / 180;
-  const double within =
-      std::clamp(angle, (90 - kMaxDorsiflexionDeg) * deg, (90 + kMaxPlantarflexionDeg) * deg);
-  return Eigen::AngleAxisd(within - angle, axis.normalized()).toRotationMatrix();
 }
 
 double max_pelvis_height(const Rig& rig, const Vector2d& pelvis_xy, const Matrix3d& pelvis_rotation,

@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <array>
+#include <cmath>
 #include <vector>
 
 #include "stages/synth/character.h"
@@ -13,6 +14,8 @@ namespace fourd::synth::detail {
 using Eigen::Matrix3d;
 using Eigen::Vector2d;
 using Eigen::Vector3d;
+
+constexpr double kDeg = M_PI / 180;  // one degree [rad]
 
 Matrix3d rot_x(double angle);
 Matrix3d rot_y(double angle);  // positive tilts +z towards +x (a forward lean / the toes down)
@@ -87,14 +90,6 @@ FootState free_foot(const Vector3d& ankle, double yaw, double pitch, double toe_
 
 // The highest pelvis height at which both hips reach their ankles with legs at most
 // `fraction` of their full length. -infinity if a foot is out of reach at any height.
-// The ankle's range of motion from its neutral (foot perpendicular to the shin), human:
-// dorsiflexion (toes towards the shin) up to 25 deg, plantarflexion up to 50 deg.
-constexpr double kMaxDorsiflexionDeg = 25, kMaxPlantarflexionDeg = 50;
-// The turn that brings a foot pointing along `forward` within that range of a shin pointing
-// along `up` (ankle towards knee), about the axis perpendicular to both; identity when it is
-// within (or the two are parallel).
-Matrix3d ankle_range_turn(const Vector3d& up, const Vector3d& forward);
-
 double max_pelvis_height(const Rig& rig, const Vector2d& pelvis_xy, const Matrix3d& pelvis_rotation,
                          const std::array<Vector3d, 2>& ankles, double fraction);
 

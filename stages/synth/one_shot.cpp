@@ -13,7 +13,6 @@ namespace fourd::synth::detail {
 namespace {
 
 constexpr double kGravity = 9.81;
-constexpr double kDeg = M_PI / 180;
 constexpr double kNominalLeg = 0.835;
 
 // Piecewise smooth curve through (time, value) keys, eased between neighbours.
