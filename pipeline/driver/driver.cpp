@@ -163,7 +163,7 @@ const std::vector<StageSpec>& stage_table() {
   static const std::vector<StageSpec> table = {
       {.name = "synth", .outputs = {"capture", "calibration", "ground_truth"}},
       {.name = "segment",
-       .inputs = {"capture", "calibration"},
+       .inputs = {"capture", "calibration", kPlatesFolder, kMasksFolder},
        .outputs = {"segment"},
        .frame_outputs = {"{take}/{camera}/{frame}.png"}},
       // Its per-frame record (.json) is written last and also for a frame that failed.
@@ -469,6 +469,54 @@ bool session_uses_synth(const Session& session) {
   return session.has_stage_section("synth");
 }
 
+bool is_imported(const fs::path& session_root, const StageSpec& stage) {
+  std::error_code ec;
+  return fs::is_regular_file(session_root / stage.outputs.front() / kImportRecordFile, ec);
+}
+
+std::map<std::string, std::string> stages_left_alone(const Session& session,
+                                                     const std::vector<StageSpec>& built) {
+  const fs::path& root = session.root();
+  std::map<std::string, std::string> alone;
+  for (const auto& s : built) {
+    if (s.name != "synth" && is_imported(root, s)) {
+      alone[s.name] = fmt::format("imported ({}/{}): kept as supplied; delete that record to "
+                                  "compute it instead",
+                                  s.outputs.front(), kImportRecordFile);
+    }
+  }
+  if (alone.empty()) return alone;
+  std::error_code ec;
+  const bool no_capture = !fs::is_directory(session.capture_dir(), ec);
+  auto reads = [](const StageSpec& reader, const std::vector<std::string>& folders) {
+    return std::any_of(reader.inputs.begin(), reader.inputs.end(), [&](const std::string& in) {
+      return std::find(folders.begin(), folders.end(), in) != folders.end();
+    });
+  };
+  // From the last stage back, so that a stage's readers are decided before it.
+  for (auto it = built.rbegin(); it != built.rend(); ++it) {
+    const StageSpec& s = *it;
+    if (s.name == "synth" || s.name == "validate" || alone.count(s.name)) continue;
+    if (no_capture && reads(s, {"capture"})) {
+      alone[s.name] = "not needed: the session has no capture/, and its imported stages stand "
+                      "without one";
+      continue;
+    }
+    std::vector<std::string> readers;
+    bool all_alone = true;
+    for (const auto& r : built) {
+      if (r.name == "validate" || r.name == s.name || !reads(r, s.outputs)) continue;
+      readers.push_back(r.name);
+      all_alone = all_alone && alone.count(r.name) > 0;
+    }
+    if (!readers.empty() && all_alone) {
+      alone[s.name] = fmt::format("not needed: only {} read(s) its outputs, and that is left alone",
+                                  join(readers));
+    }
+  }
+  return alone;
+}
+
 std::vector<StageSpec> plan_run(const Session& session, const std::vector<StageSpec>& built,
                                 const RunRequest& request) {
   if (!request.only.empty() && !request.from.empty()) {
@@ -478,6 +526,7 @@ std::vector<StageSpec> plan_run(const Session& session, const std::vector<StageS
   std::set<std::string> oracle = request.oracle;
   for (const auto& name : configured_oracle(session, built)) oracle.insert(name);
   bool uses_synth = session_uses_synth(session);
+  const std::map<std::string, std::string> alone = stages_left_alone(session, built);
   std::vector<StageSpec> plan;
   if (!request.only.empty()) {
     const StageSpec& spec = built[find_stage(built, request.only)];
@@ -487,11 +536,15 @@ std::vector<StageSpec> plan_run(const Session& session, const std::vector<StageS
           "synth must not replace; add a stages.synth section to synthesize one",
           session.config_path().string()));
     }
+    if (auto a = alone.find(spec.name); a != alone.end()) {
+      throw UsageError(fmt::format("--only {}: {}", spec.name, a->second));
+    }
     plan.push_back(spec);
   } else {
     std::size_t start = request.from.empty() ? 0 : find_stage(built, request.from);
     for (std::size_t i = start; i < built.size(); ++i) {
       if (built[i].name == "synth" && !uses_synth) continue;
+      if (alone.count(built[i].name)) continue;
       plan.push_back(built[i]);
     }
   }
@@ -675,6 +728,9 @@ RunResult run_pipeline(const fs::path& session_dir, const std::vector<StageSpec>
   Session session = Session::open(session_dir);
   const fs::path& root = session.root();
   std::vector<StageSpec> plan = plan_run(session, built, request);
+  for (const auto& [name, why] : stages_left_alone(session, built)) {
+    log::info("{}: {}", name, why);
+  }
   RunResult result;
   // Folder -> the stage of this invocation that rewrote it: its readers must rerun.
   std::map<std::string, std::string> rewritten;
@@ -783,15 +839,32 @@ const char* state_name(StageStatus::State state) {
       return "failed or incomplete";
     case StageStatus::State::kNotUsed:
       return "not used";
+    case StageStatus::State::kImported:
+      return "imported";
   }
   return "";
 }
+
+namespace {
+
+// Entries of the `warnings` list in the stage's <first output>/report.json (0 without one).
+std::size_t report_warnings(const fs::path& session_root, const StageSpec& stage) {
+  const fs::path report = session_root / stage.outputs.front() / "report.json";
+  std::error_code ec;
+  if (!fs::is_regular_file(report, ec)) return 0;
+  const nlohmann::json j = nlohmann::json::parse(read_file(report), nullptr, false);
+  if (!j.is_object() || !j.contains("warnings") || !j["warnings"].is_array()) return 0;
+  return j["warnings"].size();
+}
+
+}  // namespace
 
 std::vector<StageStatus> session_status(const fs::path& session_dir,
                                         const std::vector<StageSpec>& built) {
   Session session = Session::open(session_dir);
   const fs::path& root = session.root();
   bool uses_synth = session_uses_synth(session);
+  const std::map<std::string, std::string> alone = stages_left_alone(session, built);
   // Folder -> the stage that would rewrite it on the next run.
   std::map<std::string, std::string> pending;
   std::vector<StageStatus> table;
@@ -803,6 +876,13 @@ std::vector<StageStatus> session_status(const fs::path& session_dir,
     if (stage.name == "synth" && !uses_synth) {
       s.state = StageStatus::State::kNotUsed;
       s.detail = "no stages.synth section: capture/ is a real capture";
+      table.push_back(std::move(s));
+      continue;
+    }
+    if (auto a = alone.find(stage.name); a != alone.end()) {
+      s.state = is_imported(root, stage) ? StageStatus::State::kImported
+                                         : StageStatus::State::kNotUsed;
+      s.detail = a->second;
       table.push_back(std::move(s));
       continue;
     }
@@ -826,6 +906,11 @@ std::vector<StageStatus> session_status(const fs::path& session_dir,
       }
       s.state = reason.empty() ? StageStatus::State::kDone : StageStatus::State::kChanged;
       s.detail = reason;
+    }
+    s.warnings = report_warnings(root, stage);
+    if (s.warnings > 0) {
+      s.detail += fmt::format("{}{} warning(s): see {}/report.json", s.detail.empty() ? "" : "; ",
+                              s.warnings, stage.outputs.front());
     }
     if (s.state != StageStatus::State::kDone) {
       for (const auto& out : stage.outputs) pending[out] = stage.name;

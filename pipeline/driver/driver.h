@@ -68,10 +68,19 @@ inline constexpr const char* kOracleFolder = "oracle";
 // Control scripts the user puts in the session (runtime/player.h); validation plays those
 // that follow a path. No stage writes them.
 inline constexpr const char* kPlayFolder = "play";
+// What a studio hands over besides its frames (fourd-import writes them; no stage does):
+// background plates of the empty studio, plates/<camera>/<index>.png, and masks it made
+// itself, masks/<take>/<camera>/<frame>.png. Segment reads both.
+inline constexpr const char* kPlatesFolder = "plates";
+inline constexpr const char* kMasksFolder = "masks";
 // Completion record file name, inside the stage's first output folder.
 inline constexpr const char* kRecordFile = ".fourd_stage.json";
 // Folder of a split stage's job hand-over files, inside its output folder (tree_split).
 inline constexpr const char* kJobsFolder = ".jobs";
+// The record `fourd-import` writes last into every folder it fills. A stage whose first output
+// folder holds one was supplied by the user (meshes of another tool, a tracked mesh sequence):
+// the driver never runs it, so never overwrites what the user brought.
+inline constexpr const char* kImportRecordFile = "imported.json";
 
 // Every stage in pipeline order (synth ... validate), without executables.
 const std::vector<StageSpec>& stage_table();
@@ -212,10 +221,21 @@ struct RunRequest {
 // section. Without one, capture/ is a real capture and synth must never overwrite it.
 bool session_uses_synth(const Session& session);
 
+// Whether `stage`'s first output folder holds an import record (kImportRecordFile).
+bool is_imported(const fs::path& session_root, const StageSpec& stage);
+
+// The built stages the driver leaves alone, each with the reason: the imported ones (their
+// folders are the user's), and those made unnecessary by them - a stage every reader of whose
+// outputs is imported or itself unnecessary (validation aside: it reads whatever is there),
+// and, in a session with imported stages but no capture/, the stages that need the images.
+std::map<std::string, std::string> stages_left_alone(const Session& session,
+                                                     const std::vector<StageSpec>& built);
+
 // The stages a run considers, in order: `built` narrowed by only/from, without synth when the
-// session does not use it, with the oracle variants of the requested stages. Throws UsageError
-// for unknown names, --only with --from, an oracle request for a stage that cannot take one,
-// or --only synth on a real capture.
+// session does not use it and without the stages_left_alone, with the oracle variants of the
+// requested stages. Throws UsageError for unknown names, --only with --from, an oracle request
+// for a stage that cannot take one, --only synth on a real capture, or --only of a stage left
+// alone (an imported one: its folder is the user's).
 std::vector<StageSpec> plan_run(const Session& session, const std::vector<StageSpec>& built,
                                 const RunRequest& request);
 
@@ -266,12 +286,15 @@ RunResult run_pipeline(const fs::path& session_dir, const std::vector<StageSpec>
                        const std::function<void(const StageEvent&)>& on_event);
 
 struct StageStatus {
-  enum class State { kDone, kChanged, kNotRun, kIncomplete, kNotUsed };
+  enum class State { kDone, kChanged, kNotRun, kIncomplete, kNotUsed, kImported };
   std::string stage;
   State state = State::kNotRun;
   std::string detail;                      // what changed, or why not used
   std::optional<CompletionRecord> record;  // the last successful run, if any
   std::uint64_t output_bytes = 0;          // size of its output folders now
+  // Entries of the `warnings` list of its report (<first output>/report.json): frames or
+  // cameras the stage could not do well, which it flagged rather than passed on silently.
+  std::size_t warnings = 0;
 };
 const char* state_name(StageStatus::State state);
 

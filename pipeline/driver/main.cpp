@@ -3,7 +3,11 @@
 #include <tbb/global_control.h>
 
 #include <CLI/CLI.hpp>
+#include <unistd.h>
+
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <memory>
 
 #include "pipeline/core/command_line.h"
@@ -80,6 +84,24 @@ int command_status(const std::string& session_dir, const std::vector<StageSpec>&
                s.output_bytes ? human_bytes(s.output_bytes) : "-", s.detail);
   }
   return kExitOk;
+}
+
+// Replaces this process by fourd-import (beside fourd) with `arguments`.
+int command_import(const std::vector<std::string>& arguments) {
+  const fs::path exe = executable_dir() / "fourd-import";
+  std::error_code ec;
+  if (!fs::is_regular_file(exe, ec)) {
+    throw UsageError(fmt::format("fourd-import is not built (no {})", exe.string()));
+  }
+  std::vector<std::string> args = {exe.string()};
+  args.insert(args.end(), arguments.begin(), arguments.end());
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  std::fflush(stdout);
+  std::fflush(stderr);
+  ::execv(exe.c_str(), argv.data());
+  throw IoError(fmt::format("cannot start {}: {}", exe.string(), std::strerror(errno)));
 }
 
 int command_digest(const std::string& session_dir, std::vector<std::string> folders) {
@@ -178,6 +200,14 @@ int main(int argc, char** argv) {
   CLI::App* defaults = app.add_subcommand(
       "defaults", "print every stage's session.yaml options with their defaults (YAML)");
 
+  // `fourd import ...` is fourd-import (beside fourd) with the same arguments.
+  CLI::App* import = app.add_subcommand(
+      "import",
+      "bring a studio's capture into a session: calibration, videos or image folders, plates,\n"
+      "masks, meshes (runs fourd-import with the arguments that follow; fourd import --help)");
+  import->prefix_command();
+  import->set_help_flag();  // --help goes to fourd-import
+
   if (const auto code = parse_command_line(app, argc, argv)) return *code;
   if (request.verbose) log::set_level(log::Level::kDebug);
   // --threads also bounds the driver's own work (hashing inputs and outputs).
@@ -189,6 +219,7 @@ int main(int argc, char** argv) {
   request.oracle.insert(oracle.begin(), oracle.end());
 
   return run_guarded("fourd", [&]() -> int {
+    if (*import) return command_import(import->remaining());
     if (*run) return command_run(session_dir, request, built);
     if (*workflow) {
       workflow_request.oracle.insert(workflow_oracle.begin(), workflow_oracle.end());

@@ -209,8 +209,8 @@ WorkflowFiles write_workflow(const fs::path& session_dir, const std::vector<Stag
       }
       std::string command = shell_word(fs::path(stage.executable).filename().string());
       command = "\"{config[bin]}/\"" + command + " .";
-      for (const std::string& a : stage.arguments) command += " " + shell_word(a);
-      for (const std::string& a : job.arguments()) command += " " + shell_word(a);
+      for (const std::string& a : stage.arguments) command += ' ' + shell_word(a);
+      for (const std::string& a : job.arguments()) command += ' ' + shell_word(a);
       command += " --threads {threads}";
       rules += fmt::format("rule {}:\n", rule);
       rules += list_block("input", inputs);

@@ -112,9 +112,10 @@ TEST(StageTable, PipelineOrderAndDataFlow) {
   for (const auto& s : table) {
     for (const auto& in : s.inputs) {
       // Oracle folders are written by the oracle runs (with_oracle_variants), not the table;
-      // control scripts by the user.
+      // control scripts, plates and masks by the user.
       bool oracle = in == kOracleFolder || in.ends_with("_oracle");
-      EXPECT_TRUE(oracle || in == kPlayFolder || written.count(in)) << s.name << " reads " << in;
+      bool user = in == kPlayFolder || in == kPlatesFolder || in == kMasksFolder;
+      EXPECT_TRUE(oracle || user || written.count(in)) << s.name << " reads " << in;
     }
     for (const auto& out : s.outputs) EXPECT_TRUE(written.insert(out).second) << out;
   }
@@ -429,6 +430,82 @@ TEST_F(DriverTest, StatusReportsDoneChangedAndNotRun) {
   // copy itself is unchanged, but make will rerun before it.
   EXPECT_EQ(changed[1].state, StageStatus::State::kChanged);
   EXPECT_EQ(changed[1].detail, "upstream stage make will rerun");
+}
+
+// A folder fourd-import filled (its record, imported.json, in the stage's first output folder)
+// is the user's: the driver never runs its stage, not even with --force, and --only of it is
+// refused; the stages reading it use what was imported.
+TEST_F(DriverTest, ImportedStageIsNeverRunAndItsReadersUseIt) {
+  write_text(session_ / "b" / "mesh.txt", "imported mesh\n");
+  write_text(session_ / "b" / kImportRecordFile, "{\"tool\": \"fourd-import\"}\n");
+  RunResult first = run();
+  EXPECT_EQ(first.exit_code, 0);
+  EXPECT_EQ(first.ran, (std::vector<std::string>{"make", "sum"}));
+  EXPECT_EQ(runs("copy"), 0);
+  EXPECT_EQ(read_text(session_ / "b" / "mesh.txt"), "imported mesh\n");
+  EXPECT_NE(read_text(session_ / "c" / "result.txt").find("imported mesh"), std::string::npos);
+
+  auto status = session_status(session_, stages_);
+  ASSERT_EQ(status.size(), 3u);
+  EXPECT_EQ(status[1].state, StageStatus::State::kImported);
+  EXPECT_STREQ(state_name(status[1].state), "imported");
+  EXPECT_NE(status[1].detail.find("b/imported.json"), std::string::npos) << status[1].detail;
+  EXPECT_EQ(status[2].state, StageStatus::State::kDone) << status[2].detail;
+
+  EXPECT_TRUE(run().ran.empty());  // nothing changed
+  RunRequest force;
+  force.force = true;
+  EXPECT_EQ(run(force).ran, (std::vector<std::string>{"make", "sum"}));
+  EXPECT_EQ(runs("copy"), 0);
+  RunRequest only;
+  only.only = "copy";
+  try {
+    run(only);
+    FAIL() << "expected a UsageError";
+  } catch (const UsageError& e) {
+    EXPECT_NE(std::string(e.what()).find("imported"), std::string::npos) << e.what();
+  }
+  // An edit of the imported files reruns their readers.
+  write_text(session_ / "b" / "mesh.txt", "edited mesh\n");
+  EXPECT_EQ(run().ran, (std::vector<std::string>{"sum"}));
+}
+
+// A stage that flagged frames it could not do well (its report's `warnings`) says so in the
+// status table.
+TEST_F(DriverTest, StatusCountsTheWarningsOfAStagesReport) {
+  run();
+  EXPECT_EQ(session_status(session_, stages_)[1].warnings, 0u);
+  write_text(session_ / "b" / "report.json",
+             "{\"warnings\": [\"walk/cam03/000012: foreground 0.0004\", \"walk/000012: x\"]}");
+  auto status = session_status(session_, stages_);
+  EXPECT_EQ(status[1].warnings, 2u);
+  EXPECT_NE(status[1].detail.find("2 warning(s): see b/report.json"), std::string::npos)
+      << status[1].detail;
+}
+
+// A stage whose outputs only imported stages read has nothing to do; in a session with imported
+// stages and no capture/, the stages that need the images are not used either.
+TEST_F(DriverTest, StagesOnlyImportedStagesReadAreLeftAlone) {
+  stages_[2].inputs = {"b"};  // make -> a -> copy -> b -> sum
+  write_text(session_ / "b" / kImportRecordFile, "{}\n");
+  write_text(session_ / "b" / "mesh.txt", "imported\n");
+  EXPECT_EQ(run().ran, (std::vector<std::string>{"sum"}));
+  EXPECT_EQ(runs("make"), 0);
+  auto status = session_status(session_, stages_);
+  EXPECT_EQ(status[0].state, StageStatus::State::kNotUsed);
+  EXPECT_NE(status[0].detail.find("only copy"), std::string::npos) << status[0].detail;
+
+  Session session = Session::open(session_);
+  std::vector<StageSpec> with_capture = stages_;
+  with_capture.push_back({"texture", {"b", "capture"}, {"t"}, false, {}});
+  auto alone = stages_left_alone(session, with_capture);
+  EXPECT_TRUE(alone.count("texture"));  // no capture/ in this session
+  write_text(session_ / "capture" / "walk" / "cam" / "000000.txt", "frame\n");
+  alone = stages_left_alone(session, with_capture);
+  EXPECT_FALSE(alone.count("texture"));
+  // Without any import record nothing is left alone.
+  fs::remove(session_ / "b" / kImportRecordFile);
+  EXPECT_TRUE(stages_left_alone(session, with_capture).empty());
 }
 
 // Oracle variants of the real stage table read ground truth wherever it can stand in for their
