@@ -11,7 +11,7 @@
 //    "align": {"pipeline": {"correspondence_rms_mm": 8.1}, "oracle": {...}}}
 //
 // Flattened with '.', the keys read "<stage>.<metric>" or "<stage>.<input>.<metric>", with the
-// unit in the metric name; shared/tools/check_metrics.py matches them that way.
+// unit in the metric name; tools/check_metrics.py matches them that way.
 //
 // Adding a stage: write `StageReport validate_<stage>(const ValidationContext&)` (in its own
 // .cpp here) and list it in validators(). A validator returns present = false, without
