@@ -3,7 +3,7 @@
 // session and writes reports/metrics.json (machine-readable, stable) and reports/report.md
 // (Markdown with pictures).
 //
-// metrics.json scheme (DESIGN.md "Validation contract"): one object per stage; a metric that
+// metrics.json scheme (docs/design.md "Validation contract"): one object per stage; a metric that
 // depends on which inputs the stage ran on sits under "pipeline" or "oracle", the others
 // directly under the stage:
 //
@@ -45,7 +45,7 @@ struct ValidateOptions {
   }
 };
 
-// Which inputs a metric was computed on (DESIGN.md "Oracle inputs"). kNone: the metric does
+// Which inputs a metric was computed on (docs/design.md "Oracle inputs"). kNone: the metric does
 // not depend on it (synth's own checks, counts).
 enum class InputKind { kNone, kPipeline, kOracle };
 
