@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The reliability jobs (README "Reliability"), after scripts/test.sh has built the project and
+# The reliability jobs (docs/reliability.md), after scripts/test.sh has built the project and
 # run the tests (whose workflow session, build/workflow_local/local, is the uninterrupted
 # reference; REFERENCE names another finished session, e.g. build/e2e_tiny):
 #   1. kill-and-rerun: KILLS (default 1) random SIGKILLs per stage on a copy of REFERENCE;

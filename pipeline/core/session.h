@@ -1,5 +1,5 @@
 #pragma once
-// The session folder (see README "The session folder") and its session.yaml.
+// The session folder (see docs/design.md "The session folder") and its session.yaml.
 #include <yaml-cpp/yaml.h>
 
 #include <array>

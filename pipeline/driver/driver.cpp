@@ -157,7 +157,7 @@ bool reads_any(const std::vector<std::string>& inputs,
 }  // namespace
 
 const std::vector<StageSpec>& stage_table() {
-  // The data flow of DESIGN.md "Stages". Segment has no oracle: nothing precedes it but the
+  // The data flow of docs/design.md "Stages". Segment has no oracle: nothing precedes it but the
   // capture. Validate reads every stage's outputs plus the ground truth, and plays the
   // session's control scripts (play/) on the assets.
   static const std::vector<StageSpec> table = {

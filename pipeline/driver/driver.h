@@ -8,7 +8,7 @@
 // session.yaml plus the top-level session config, both re-emitted canonically), the hash of the
 // stage executable, and the hash of every output file.
 //
-// Oracle runs (DESIGN.md "Oracle inputs"). A stage X asked for with --oracle X (or listed in
+// Oracle runs (docs/design.md "Oracle inputs"). A stage X asked for with --oracle X (or listed in
 // session.yaml's `oracle:`) runs a second time as the variant "X_oracle": `fourd-X --oracle`,
 // reading inputs derived from ground truth and writing X_oracle/, so validation can report the
 // pipeline and the oracle numbers side by side. The ground-truth-derived inputs are made by the

@@ -15,7 +15,7 @@ namespace fourd {
 
 struct StageArgs {
   std::string session_dir;
-  // Validation mode (DESIGN.md "Oracle inputs"): read inputs derived from ground truth (see
+  // Validation mode (docs/design.md "Oracle inputs"): read inputs derived from ground truth (see
   // stage_input_dir) instead of the previous stage's outputs, and write to <stage>_oracle/ so
   // pipeline and oracle results coexist.
   bool oracle = false;

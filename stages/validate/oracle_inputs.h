@@ -1,5 +1,5 @@
 #pragma once
-// Oracle inputs (DESIGN.md "Oracle inputs"): stage inputs made from the ground truth of a
+// Oracle inputs (docs/design.md "Oracle inputs"): stage inputs made from the ground truth of a
 // synthetic session, so each stage's own error can be measured apart from the errors it
 // inherits. `fourd-validate SESSION --prepare-oracle` writes, replacing the folder as a whole:
 //

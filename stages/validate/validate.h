@@ -3,7 +3,7 @@
 // session and writes reports/metrics.json (machine-readable, stable) and reports/report.md
 // (Markdown with pictures).
 //
-// metrics.json scheme (DESIGN.md "Validation contract"): one object per stage; a metric that
+// metrics.json scheme (docs/design.md "Validation contract"): one object per stage; a metric that
 // depends on which inputs the stage ran on sits under "pipeline" or "oracle", the others
 // directly under the stage:
 //
@@ -11,7 +11,7 @@
 //    "align": {"pipeline": {"correspondence_rms_mm": 8.1}, "oracle": {...}}}
 //
 // Flattened with '.', the keys read "<stage>.<metric>" or "<stage>.<input>.<metric>", with the
-// unit in the metric name; shared/tools/check_metrics.py matches them that way.
+// unit in the metric name; tools/check_metrics.py matches them that way.
 //
 // Adding a stage: write `StageReport validate_<stage>(const ValidationContext&)` (in its own
 // .cpp here) and list it in validators(). A validator returns present = false, without
@@ -45,7 +45,7 @@ struct ValidateOptions {
   }
 };
 
-// Which inputs a metric was computed on (DESIGN.md "Oracle inputs"). kNone: the metric does
+// Which inputs a metric was computed on (docs/design.md "Oracle inputs"). kNone: the metric does
 // not depend on it (synth's own checks, counts).
 enum class InputKind { kNone, kPipeline, kOracle };
 

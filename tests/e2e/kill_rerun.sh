@@ -31,9 +31,10 @@ if [ ${#stages[@]} -eq 0 ]; then
   stages=(synth segment reconstruct align timewarp motionspace texture graph validate)
 fi
 
-# The stage outputs the manifest covers: every folder a stage writes (DESIGN.md), without the
-# logs and the e2e test's own extra folders, hashed by `fourd digest`: results byte for byte,
-# run records (times, CPU, logs; see driver.h is_run_measurement) left out, the completion
+# The stage outputs the manifest covers: every folder a stage writes (docs/design.md "The
+# session folder"), without the logs and the e2e test's own extra folders, hashed by
+# `fourd digest`: results byte for byte, run records (times, CPU, logs; see driver.h
+# is_run_measurement) left out, the completion
 # records too. Temp files of the atomic writers (.<name>.tmp<pid>-<n>) and hidden scratch
 # folders (.<name>.tmp/: reconstruct's COLMAP workspace, the staging folders of the stages that
 # replace their output folder whole) are listed under their own names.
