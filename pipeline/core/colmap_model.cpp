@@ -169,10 +169,7 @@ std::map<long long, Intrinsics> read_cameras_txt(const fs::path& path) {
   return cameras;
 }
 
-struct ImageEntry {
-  long long camera_id = 0;
-  Camera camera;
-};
+using ImageEntry = ColmapImage;
 
 std::map<long long, ImageEntry> read_images_txt(const fs::path& path,
                                                 const fs::path& cameras_path,
@@ -220,7 +217,9 @@ std::map<long long, ImageEntry> read_images_txt(const fs::path& path,
     }
 
     ImageEntry entry;
+    entry.image_id = image_id;
     entry.camera_id = camera_id;
+    entry.image_name = image_name;
     entry.camera.name = fs::path(image_name).replace_extension().string();
     if (entry.camera.name.empty()) at.fail(fmt::format("image {} has an empty name", image_id));
     entry.camera.intrinsics = cam->second;
@@ -378,20 +377,49 @@ std::string rig_json(const std::vector<Camera>& cameras) {
 
 }  // namespace
 
-std::vector<Camera> read_colmap_model(const fs::path& dir) {
+namespace {
+
+struct TextModel {
+  std::map<long long, Intrinsics> intrinsics;
+  std::map<long long, ImageEntry> images;
+};
+
+TextModel read_text_model(const fs::path& dir) {
   if (!fs::is_directory(dir)) {
     throw InputError(fmt::format("{}: calibration folder does not exist", dir.string()));
   }
   const fs::path cameras_path = dir / "cameras.txt";
-  const auto intrinsics = read_cameras_txt(cameras_path);
-  const auto images = read_images_txt(dir / "images.txt", cameras_path, intrinsics);
-  if (images.empty()) {
+  if (!fs::exists(cameras_path) && fs::exists(dir / "cameras.bin")) {
+    throw InputError(fmt::format("{}: a binary COLMAP model; convert it to text first (colmap "
+                                 "model_converter --input_path {} --output_path {} --output_type "
+                                 "TXT)",
+                                 dir.string(), dir.string(), dir.string()));
+  }
+  TextModel model;
+  model.intrinsics = read_cameras_txt(cameras_path);
+  model.images = read_images_txt(dir / "images.txt", cameras_path, model.intrinsics);
+  if (model.images.empty()) {
     throw InputError(fmt::format("{}: lists no images (one per camera)", (dir / "images.txt").string()));
   }
-  if (fs::exists(dir / "rig.json")) check_rig_json(dir / "rig.json", intrinsics, images);
+  return model;
+}
+
+}  // namespace
+
+std::vector<ColmapImage> read_colmap_images(const fs::path& dir) {
+  const TextModel model = read_text_model(dir);
+  std::vector<ColmapImage> images;
+  images.reserve(model.images.size());
+  for (const auto& [id, image] : model.images) images.push_back(image);
+  return images;
+}
+
+std::vector<Camera> read_colmap_model(const fs::path& dir) {
+  const TextModel model = read_text_model(dir);
+  if (fs::exists(dir / "rig.json")) check_rig_json(dir / "rig.json", model.intrinsics, model.images);
   std::vector<Camera> cameras;
-  cameras.reserve(images.size());
-  for (const auto& [id, image] : images) cameras.push_back(image.camera);
+  cameras.reserve(model.images.size());
+  for (const auto& [id, image] : model.images) cameras.push_back(image.camera);
   return cameras;
 }
 
