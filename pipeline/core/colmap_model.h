@@ -27,12 +27,13 @@ struct ColmapImage {
   Camera camera;           // named by image_name without its extension
 };
 
-// Reads cameras.txt and images.txt of any COLMAP text model (rig.json is not checked), images
-// in IMAGE_ID order; the same errors as read_colmap_model. A binary model (cameras.bin) is an
-// InputError saying how to convert it to text.
+// Reads cameras.txt and images.txt of any COLMAP text model (rig.json is not checked), or
+// cameras.bin and images.bin of a binary model when there is no cameras.txt; images in
+// IMAGE_ID order; the same errors as read_colmap_model (a binary file's name its byte offset).
 std::vector<ColmapImage> read_colmap_images(const std::filesystem::path& dir);
 
-// Reads cameras.txt and images.txt (and checks rig.json against them when present). Accepts the
+// Reads cameras.txt and images.txt (or a binary model's cameras.bin and images.bin, as
+// read_colmap_images does), and checks rig.json against them when present. Accepts the
 // camera models SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL and OPENCV. Cameras come back
 // in IMAGE_ID order. Throws InputError naming the file (and line) for a missing folder or file,
 // a malformed line, an unknown camera model, an image that references an unknown camera, a

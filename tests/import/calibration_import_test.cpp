@@ -178,6 +178,50 @@ TEST(ImportCalibration, ColmapModelWithManyImagesPerCamera) {
   }
 }
 
+// COLMAP's binary model, as its reconstructions write it: cameras.bin and images.bin.
+TEST(ImportCalibration, ColmapBinaryModel) {
+  const fs::path dir = test::scratch_dir("import_colmap_bin");
+  const std::vector<Camera> rig = test::circle_rig(4);
+  std::string cameras, images;
+  auto put = [](std::string* out, const auto& value) {
+    out->append(reinterpret_cast<const char*>(&value), sizeof(value));
+  };
+  put(&cameras, std::uint64_t{rig.size()});
+  for (std::size_t i = 0; i < rig.size(); ++i) {
+    const Intrinsics& in = rig[i].intrinsics;
+    put(&cameras, std::int32_t(i + 1));
+    put(&cameras, std::int32_t(4));  // OPENCV
+    put(&cameras, std::uint64_t(in.width));
+    put(&cameras, std::uint64_t(in.height));
+    for (double v : {in.fx, in.fy, in.cx, in.cy, in.k1, in.k2, in.p1, in.p2}) put(&cameras, v);
+  }
+  put(&images, std::uint64_t{rig.size()});
+  for (std::size_t i = 0; i < rig.size(); ++i) {
+    const Eigen::Quaterniond q(rig[i].camera_from_world.linear());
+    const Eigen::Vector3d t = rig[i].camera_from_world.translation();
+    put(&images, std::uint32_t(10 + i));
+    for (double v : {q.w(), q.x(), q.y(), q.z(), t.x(), t.y(), t.z()}) put(&images, v);
+    put(&images, std::uint32_t(i + 1));
+    images += rig[i].name + ".jpg";
+    images += '\0';
+    put(&images, std::uint64_t{2});  // two POINTS2D: x, y, point3D_id
+    for (int k = 0; k < 2; ++k) {
+      put(&images, 1.5);
+      put(&images, 2.5);
+      put(&images, std::int64_t{-1});
+    }
+  }
+  write(dir / "cameras.bin", cameras);
+  write(dir / "images.bin", images);
+  const ImportedCalibration imported = import_calibration(source(dir, "m"));
+  EXPECT_LT(worst_relative_error(rig, imported.cameras), 1e-12);
+  // Truncated: named with the byte where it ends.
+  write(dir / "images.bin", images.substr(0, images.size() - 5));
+  const std::string error = test::input_error([&] { import_calibration(source(dir, "m")); });
+  EXPECT_NE(error.find("images.bin: byte"), std::string::npos) << error;
+  EXPECT_NE(error.find("truncated in POINTS2D"), std::string::npos) << error;
+}
+
 TEST(ImportCalibration, EasyMocapStyleIntrinsicsAndExtrinsicsFiles) {
   const fs::path dir = test::scratch_dir("import_intri_extri");
   const std::vector<Camera> rig = test::circle_rig(4);
