@@ -222,6 +222,39 @@ TEST(ImportCalibration, ColmapBinaryModel) {
   EXPECT_NE(error.find("truncated in POINTS2D"), std::string::npos) << error;
 }
 
+// The shapes public multi-view datasets publish: a "cameras" list with "resolution", "distCoef"
+// and t as a column ([[x], [y], [z]]) in centimetres; a bare list with "size", "matrix",
+// "distortions" and a Rodrigues "rotation".
+TEST(ImportCalibration, DatasetJsonShapes) {
+  const fs::path dir = test::scratch_dir("import_dataset_json");
+  const std::vector<Camera> rig = test::circle_rig(5);
+  std::string column = R"({"cameras": [)", bare = "[";
+  for (std::size_t i = 0; i < rig.size(); ++i) {
+    const Camera& c = rig[i];
+    const Intrinsics& in = c.intrinsics;
+    const Eigen::Matrix3d r = c.camera_from_world.linear();
+    const Eigen::Vector3d t = c.camera_from_world.translation() * 100;  // cm
+    const Eigen::AngleAxisd aa(r);
+    const Eigen::Vector3d rv = aa.angle() * aa.axis();
+    const std::string k = fmt::format("[[{}, 0, {}], [0, {}, {}], [0, 0, 1]]", in.fx, in.cx - 0.5, in.fy, in.cy - 0.5);
+    const std::string dist = fmt::format("[{}, {}, {}, {}, 0]", in.k1, in.k2, in.p1, in.p2);
+    column += fmt::format(
+        R"({}{{"name": "{}", "type": "hd", "resolution": [{}, {}], "K": {}, "distCoef": {}, "R": [[{}, {}, {}], [{}, {}, {}], [{}, {}, {}]], "t": [[{}], [{}], [{}]]}})",
+        i ? ", " : "", c.name, in.width, in.height, k, dist, r(0, 0), r(0, 1), r(0, 2), r(1, 0), r(1, 1), r(1, 2),
+        r(2, 0), r(2, 1), r(2, 2), t.x(), t.y(), t.z());
+    bare += fmt::format(R"({}{{"name": "{}", "size": [{}, {}], "matrix": {}, "distortions": {}, "rotation": [{}, {}, {}], "translation": [{}, {}, {}]}})",
+                        i ? ", " : "", c.name, in.width, in.height, k, dist, rv.x(), rv.y(), rv.z(), t.x(), t.y(), t.z());
+  }
+  write(dir / "column.json", column + "]}");
+  write(dir / "bare.json", bare + "]");
+  for (const char* file : {"column.json", "bare.json"}) {
+    SCOPED_TRACE(file);
+    const ImportedCalibration imported = import_calibration(source(dir / file));
+    EXPECT_EQ(imported.unit, LengthUnit::kCentimetre) << imported.unit_origin;
+    EXPECT_LT(worst_relative_error(rig, imported.cameras), 1e-9);
+  }
+}
+
 TEST(ImportCalibration, EasyMocapStyleIntrinsicsAndExtrinsicsFiles) {
   const fs::path dir = test::scratch_dir("import_intri_extri");
   const std::vector<Camera> rig = test::circle_rig(4);
