@@ -160,6 +160,41 @@ TEST(Import, ImageFoldersTimeRangesAndBadInputLeaveNothing) {
   EXPECT_FALSE(fs::exists(missing.session / "calibration"));
 }
 
+// Cameras of different resolutions: each frame must have its own camera's size.
+TEST(Import, CamerasOfDifferentSizes) {
+  const fs::path dir = test::scratch_dir("import_sizes");
+  std::vector<Camera> rig = test::circle_rig(2, kWidth, kHeight);
+  rig[1].intrinsics.width = 80;
+  rig[1].intrinsics.height = 60;
+  rig[1].intrinsics.cx = 40.2;
+  rig[1].intrinsics.cy = 29.7;
+  export_calibration(rig, "json", dir / "calibration.json", LengthUnit::kMetre);
+  for (int c = 0; c < 2; ++c) {
+    for (int f = 0; f < 4; ++f) {
+      write_image_atomic(dir / "raw" / rig[c].name / fmt::format("{}.png", f),
+                         source_frame(c, f, rig[c].intrinsics.width, rig[c].intrinsics.height));
+    }
+  }
+  ImportOptions o;
+  o.session = dir / "session";
+  o.calibration.paths = {dir / "calibration.json"};
+  o.images = (dir / "raw" / "{camera}" / "*.png").string();
+  o.takes = {"t=1:"};
+  run_import(o);
+  const Session session = Session::open(o.session);
+  const std::vector<Camera> cameras = read_colmap_model(session.calibration_dir());
+  EXPECT_TRUE(same_pixels(read_capture_image(session, cameras[1], "t", 2), source_frame(1, 3, 80, 60)));
+  EXPECT_EQ(scan_capture(session, cameras).take("t").frame_count, 3);
+
+  write_image_atomic(dir / "raw" / "cam01" / "2.png", source_frame(1, 2));  // 64x48
+  o.session = dir / "bad";
+  const std::string error = test::input_error([&] { run_import(o); });
+  EXPECT_NE(error.find("2.png (camera cam01, take t frame 000001): 64x48, but camera cam01 is calibrated at 80x60"),
+            std::string::npos)
+      << error;
+  EXPECT_FALSE(fs::exists(o.session / "capture"));
+}
+
 TEST(Import, MasksAndPlates) {
   const Studio s = make_studio("import_masks", 6);
   for (int c = 0; c < 2; ++c) {
