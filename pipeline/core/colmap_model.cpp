@@ -4,6 +4,8 @@
 
 #include <Eigen/Geometry>
 #include <charconv>
+#include <cstdint>
+#include <cstring>
 #include <cmath>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -169,10 +171,7 @@ std::map<long long, Intrinsics> read_cameras_txt(const fs::path& path) {
   return cameras;
 }
 
-struct ImageEntry {
-  long long camera_id = 0;
-  Camera camera;
-};
+using ImageEntry = ColmapImage;
 
 std::map<long long, ImageEntry> read_images_txt(const fs::path& path,
                                                 const fs::path& cameras_path,
@@ -220,7 +219,9 @@ std::map<long long, ImageEntry> read_images_txt(const fs::path& path,
     }
 
     ImageEntry entry;
+    entry.image_id = image_id;
     entry.camera_id = camera_id;
+    entry.image_name = image_name;
     entry.camera.name = fs::path(image_name).replace_extension().string();
     if (entry.camera.name.empty()) at.fail(fmt::format("image {} has an empty name", image_id));
     entry.camera.intrinsics = cam->second;
@@ -235,6 +236,103 @@ std::map<long long, ImageEntry> read_images_txt(const fs::path& path,
     if (!images.emplace(image_id, std::move(entry)).second) {
       at.fail(fmt::format("IMAGE_ID {} appears twice", image_id));
     }
+  }
+  return images;
+}
+
+// The binary model (cameras.bin, images.bin) of COLMAP's reconstructions: little-endian,
+// read through a bounds-checked cursor so a truncated file is an error naming it.
+class BinaryCursor {
+ public:
+  explicit BinaryCursor(const fs::path& path) : path_(path), bytes_(read_file(path)) {}
+  template <class T>
+  T get(const char* what) {
+    T value;
+    if (bytes_.size() - at_ < sizeof(T)) fail(fmt::format("truncated in {}", what));
+    std::memcpy(&value, bytes_.data() + at_, sizeof(T));
+    at_ += sizeof(T);
+    return value;
+  }
+  std::string get_string(const char* what) {
+    const auto end = bytes_.find('\0', at_);
+    if (end == std::string::npos) fail(fmt::format("truncated in {}", what));
+    std::string out = bytes_.substr(at_, end - at_);
+    at_ = end + 1;
+    return out;
+  }
+  void skip(std::uint64_t count, std::size_t size, const char* what) {
+    if (count > (bytes_.size() - at_) / size) fail(fmt::format("truncated in {}", what));
+    at_ += count * size;
+  }
+  [[noreturn]] void fail(const std::string& what) const {
+    throw InputError(fmt::format("{}: byte {}: {}", path_.string(), at_, what));
+  }
+
+ private:
+  fs::path path_;
+  std::string bytes_;
+  std::size_t at_ = 0;
+};
+
+std::map<long long, Intrinsics> read_cameras_bin(const fs::path& path) {
+  // COLMAP's model ids of the models intrinsics_from_model knows (others are refused there).
+  static const std::map<int, std::pair<const char*, int>> kModels = {
+      {0, {"SIMPLE_PINHOLE", 3}}, {1, {"PINHOLE", 4}}, {2, {"SIMPLE_RADIAL", 4}},
+      {3, {"RADIAL", 5}},         {4, {"OPENCV", 8}}};
+  BinaryCursor in(path);
+  std::map<long long, Intrinsics> cameras;
+  const auto count = in.get<std::uint64_t>("the camera count");
+  for (std::uint64_t i = 0; i < count; ++i) {
+    const long long id = in.get<std::int32_t>("CAMERA_ID");
+    const int model_id = in.get<std::int32_t>("MODEL");
+    const auto width = in.get<std::uint64_t>("WIDTH"), height = in.get<std::uint64_t>("HEIGHT");
+    const auto model = kModels.find(model_id);
+    if (model == kModels.end()) {
+      in.fail(fmt::format("camera {} has COLMAP model id {} (supported: 0-4, SIMPLE_PINHOLE to "
+                          "OPENCV)",
+                          id, model_id));
+    }
+    std::vector<double> params;
+    for (int k = 0; k < model->second.second; ++k) params.push_back(in.get<double>("PARAMS"));
+    Intrinsics intr = intrinsics_from_model(LineContext(path, 0), model->second.first, params);
+    if (width == 0 || height == 0 || width > 1'000'000 || height > 1'000'000 || !(intr.fx > 0) ||
+        !(intr.fy > 0)) {
+      in.fail(fmt::format("camera {} has an invalid size {}x{} or focal length", id, width, height));
+    }
+    intr.width = static_cast<int>(width);
+    intr.height = static_cast<int>(height);
+    if (!cameras.emplace(id, intr).second) in.fail(fmt::format("CAMERA_ID {} appears twice", id));
+  }
+  return cameras;
+}
+
+std::map<long long, ImageEntry> read_images_bin(const fs::path& path, const fs::path& cameras_path,
+                                                const std::map<long long, Intrinsics>& cameras) {
+  BinaryCursor in(path);
+  std::map<long long, ImageEntry> images;
+  const auto count = in.get<std::uint64_t>("the image count");
+  for (std::uint64_t i = 0; i < count; ++i) {
+    ImageEntry entry;
+    entry.image_id = in.get<std::uint32_t>("IMAGE_ID");
+    double q[4], t[3];
+    for (double& v : q) v = in.get<double>("QVEC");
+    for (double& v : t) v = in.get<double>("TVEC");
+    entry.camera_id = in.get<std::uint32_t>("CAMERA_ID");
+    entry.image_name = in.get_string("NAME");
+    in.skip(in.get<std::uint64_t>("the POINTS2D count"), 24, "POINTS2D");
+    Eigen::Quaterniond quat(q[0], q[1], q[2], q[3]);
+    if (!(quat.norm() > 1e-9)) in.fail(fmt::format("image {} has a zero quaternion", entry.image_id));
+    const auto cam = cameras.find(entry.camera_id);
+    if (cam == cameras.end()) {
+      in.fail(fmt::format("image {} ('{}') references CAMERA_ID {}, which {} does not define",
+                          entry.image_id, entry.image_name, entry.camera_id, cameras_path.string()));
+    }
+    entry.camera.name = fs::path(entry.image_name).replace_extension().string();
+    entry.camera.intrinsics = cam->second;
+    entry.camera.camera_from_world.linear() = quat.normalized().toRotationMatrix();
+    entry.camera.camera_from_world.translation() = Eigen::Vector3d(t[0], t[1], t[2]);
+    const long long id = entry.image_id;
+    if (!images.emplace(id, std::move(entry)).second) in.fail(fmt::format("IMAGE_ID {} appears twice", id));
   }
   return images;
 }
@@ -378,20 +476,51 @@ std::string rig_json(const std::vector<Camera>& cameras) {
 
 }  // namespace
 
-std::vector<Camera> read_colmap_model(const fs::path& dir) {
+namespace {
+
+struct Model {
+  std::map<long long, Intrinsics> intrinsics;
+  std::map<long long, ImageEntry> images;
+};
+
+Model read_model(const fs::path& dir) {
   if (!fs::is_directory(dir)) {
     throw InputError(fmt::format("{}: calibration folder does not exist", dir.string()));
   }
   const fs::path cameras_path = dir / "cameras.txt";
-  const auto intrinsics = read_cameras_txt(cameras_path);
-  const auto images = read_images_txt(dir / "images.txt", cameras_path, intrinsics);
-  if (images.empty()) {
+  Model model;
+  if (!fs::exists(cameras_path) && fs::exists(dir / "cameras.bin")) {
+    model.intrinsics = read_cameras_bin(dir / "cameras.bin");
+    model.images = read_images_bin(dir / "images.bin", dir / "cameras.bin", model.intrinsics);
+    if (model.images.empty()) {
+      throw InputError(fmt::format("{}: lists no images", (dir / "images.bin").string()));
+    }
+    return model;
+  }
+  model.intrinsics = read_cameras_txt(cameras_path);
+  model.images = read_images_txt(dir / "images.txt", cameras_path, model.intrinsics);
+  if (model.images.empty()) {
     throw InputError(fmt::format("{}: lists no images (one per camera)", (dir / "images.txt").string()));
   }
-  if (fs::exists(dir / "rig.json")) check_rig_json(dir / "rig.json", intrinsics, images);
+  return model;
+}
+
+}  // namespace
+
+std::vector<ColmapImage> read_colmap_images(const fs::path& dir) {
+  const Model model = read_model(dir);
+  std::vector<ColmapImage> images;
+  images.reserve(model.images.size());
+  for (const auto& [id, image] : model.images) images.push_back(image);
+  return images;
+}
+
+std::vector<Camera> read_colmap_model(const fs::path& dir) {
+  const Model model = read_model(dir);
+  if (fs::exists(dir / "rig.json")) check_rig_json(dir / "rig.json", model.intrinsics, model.images);
   std::vector<Camera> cameras;
-  cameras.reserve(images.size());
-  for (const auto& [id, image] : images) cameras.push_back(image.camera);
+  cameras.reserve(model.images.size());
+  for (const auto& [id, image] : model.images) cameras.push_back(image.camera);
   return cameras;
 }
 

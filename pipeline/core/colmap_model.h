@@ -11,13 +11,29 @@
 // camera's camera_from_world (COLMAP's qvec/tvec are world-to-camera too). Camera::name is the
 // image NAME without its extension.
 #include <filesystem>
+#include <string>
 #include <vector>
 
 #include "pipeline/core/camera.h"
 
 namespace fourd {
 
-// Reads cameras.txt and images.txt (and checks rig.json against them when present). Accepts the
+// One image of a COLMAP text model. A model from structure-from-motion holds many images per
+// COLMAP camera; the session's calibration holds one per physical camera.
+struct ColmapImage {
+  long long image_id = 0;
+  long long camera_id = 0;
+  std::string image_name;  // NAME as images.txt writes it, e.g. "cam00.png" or "cam00/0001.jpg"
+  Camera camera;           // named by image_name without its extension
+};
+
+// Reads cameras.txt and images.txt of any COLMAP text model (rig.json is not checked), or
+// cameras.bin and images.bin of a binary model when there is no cameras.txt; images in
+// IMAGE_ID order; the same errors as read_colmap_model (a binary file's name its byte offset).
+std::vector<ColmapImage> read_colmap_images(const std::filesystem::path& dir);
+
+// Reads cameras.txt and images.txt (or a binary model's cameras.bin and images.bin, as
+// read_colmap_images does), and checks rig.json against them when present. Accepts the
 // camera models SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL and OPENCV. Cameras come back
 // in IMAGE_ID order. Throws InputError naming the file (and line) for a missing folder or file,
 // a malformed line, an unknown camera model, an image that references an unknown camera, a

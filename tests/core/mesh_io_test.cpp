@@ -13,6 +13,7 @@
 
 #include "pipeline/core/error.h"
 #include "pipeline/core/files.h"
+#include "tests/input_error.h"
 #include "tests/test_shapes.h"
 
 namespace fourd {
@@ -44,17 +45,7 @@ class MeshIoTest : public ::testing::Test {
   fs::path dir_;
 };
 
-// Message of the InputError `f` throws ("" and a test failure when it throws none).
-template <class F>
-std::string input_error(F&& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "no InputError thrown";
-  return "";
-}
+using test::input_error;
 
 bool contains(const std::string& text, std::string_view part) {
   return text.find(part) != std::string::npos;

@@ -6,22 +6,13 @@
 #include <cmath>
 
 #include "pipeline/core/error.h"
+#include "tests/input_error.h"
 #include "tests/test_shapes.h"
 
 namespace fourd {
 namespace {
 
-// Message of the InputError `f` throws ("" and a test failure when it throws none).
-template <class F>
-std::string input_error(F&& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "no InputError thrown";
-  return "";
-}
+using test::input_error;
 
 TEST(Mesh, ShapesHaveExpectedCounts) {
   Mesh sphere = test::make_icosphere(2, 1.5f);
