@@ -52,6 +52,11 @@ inline bool is_prepared_oracle_input(std::string_view stage) {
   return false;
 }
 
+// The record fourd-import writes last into every folder it fills (calibration/, capture/,
+// plates/, masks/, reconstruct/, align/). The driver never runs a stage whose folder holds one:
+// what the user supplied is never overwritten.
+inline constexpr const char* kImportRecordFile = "imported.json";
+
 struct SessionConfig {
   std::string name = "session";
   double fps = 25;  // capture frame rate [frames/s]

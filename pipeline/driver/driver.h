@@ -77,10 +77,6 @@ inline constexpr const char* kMasksFolder = "masks";
 inline constexpr const char* kRecordFile = ".fourd_stage.json";
 // Folder of a split stage's job hand-over files, inside its output folder (tree_split).
 inline constexpr const char* kJobsFolder = ".jobs";
-// The record `fourd-import` writes last into every folder it fills. A stage whose first output
-// folder holds one was supplied by the user (meshes of another tool, a tracked mesh sequence):
-// the driver never runs it, so never overwrites what the user brought.
-inline constexpr const char* kImportRecordFile = "imported.json";
 
 // Every stage in pipeline order (synth ... validate), without executables.
 const std::vector<StageSpec>& stage_table();

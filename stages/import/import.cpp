@@ -84,7 +84,7 @@ void write_record(const fs::path& dir, const std::string& what, const std::vecto
                   const json& takes, const json& checks) {
   json record = {{"tool", "fourd-import"}, {"what", what}, {"source", json::array()},
                  {"takes", json::object()}, {"checks", json::object()}};
-  const fs::path file = dir / kImportRecord;
+  const fs::path file = dir / kImportRecordFile;
   if (fs::exists(file)) {
     try {
       const json previous = json::parse(read_file(file));

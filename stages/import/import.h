@@ -26,9 +26,6 @@
 
 namespace fourd::import {
 
-// The record a folder's import leaves in it.
-inline constexpr const char* kImportRecord = "imported.json";
-
 struct ImportOptions {
   std::filesystem::path session;
   std::string name;  // a new session's name (default: the folder's name)
