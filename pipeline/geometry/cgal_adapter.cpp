@@ -2,23 +2,17 @@
 
 #include <fmt/format.h>
 
-#include <vector>
-
 #include "pipeline/core/error.h"
 
 namespace fourd::cgal {
 
 SurfaceMesh to_surface_mesh(const Mesh& mesh, std::string_view what) {
   SurfaceMesh out;
-  std::vector<SurfaceMesh::Vertex_index> v;
-  v.reserve(mesh.positions.size());
-  for (const Vec3f& p : mesh.positions) v.push_back(out.add_vertex(Kernel::Point_3(p.x(), p.y(), p.z())));
-  for (std::size_t f = 0; f < mesh.triangles.size(); ++f) {
+  const long f = add_triangles(out, mesh.positions, mesh.triangles);
+  if (f >= 0) {
     const Tri& t = mesh.triangles[f];
-    if (out.add_face(v[t[0]], v[t[1]], v[t[2]]) == SurfaceMesh::null_face()) {
-      throw InputError(fmt::format("{}: triangle {} ({}, {}, {}) makes the surface non-manifold",
-                                   what, f, t[0], t[1], t[2]));
-    }
+    throw InputError(fmt::format("{}: triangle {} ({}, {}, {}) makes the surface non-manifold",
+                                 what, f, t[0], t[1], t[2]));
   }
   return out;
 }

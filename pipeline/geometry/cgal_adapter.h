@@ -6,6 +6,7 @@
 #include <CGAL/Surface_mesh.h>
 
 #include <string_view>
+#include <vector>
 
 #include "pipeline/core/mesh.h"
 
@@ -13,6 +14,29 @@ namespace fourd::cgal {
 
 using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
 using SurfaceMesh = CGAL::Surface_mesh<Kernel::Point_3>;
+
+// Adds `positions` (#V points with x(), y(), z(), in any precision) as vertices of `sm` (their
+// handles in `*vertices`, if given), then `triangles` (#F, indices into positions) as faces in
+// order, up to the first one `sm` refuses (it would make the surface non-manifold). Returns
+// that triangle's index, or -1 when every one is in. For any Surface_mesh point type.
+template <class SM, class Position>
+long add_triangles(SM& sm, const std::vector<Position>& positions, const std::vector<Tri>& triangles,
+                   std::vector<typename SM::Vertex_index>* vertices = nullptr) {
+  using Point = typename SM::Point;
+  std::vector<typename SM::Vertex_index> v;
+  v.reserve(positions.size());
+  for (const Position& p : positions) v.push_back(sm.add_vertex(Point(p.x(), p.y(), p.z())));
+  long refused = -1;
+  for (std::size_t f = 0; f < triangles.size(); ++f) {
+    const Tri& t = triangles[f];
+    if (sm.add_face(v[t[0]], v[t[1]], v[t[2]]) == SM::null_face()) {
+      refused = static_cast<long>(f);
+      break;
+    }
+  }
+  if (vertices) *vertices = std::move(v);
+  return refused;
+}
 
 // The surface mesh of `mesh`'s positions (same order) and triangles. Throws InputError
 // "<what>: triangle f (a, b, c) makes the surface non-manifold" at the first triangle it
