@@ -26,17 +26,6 @@ double smoothstep(double x) {
   return x * x * (3 - 2 * x);
 }
 
-double wrap01(double t) {
-  const double w = t - std::floor(t);
-  return w >= 1.0 ? 0.0 : w;
-}
-
-// a * b for double-precision world poses and a float local delta.
-RootTransform compose(const RootTransform& a, const RootPose& b) {
-  const double c = std::cos(a.heading), s = std::sin(a.heading);
-  return {a.x + c * b.x - s * b.y, a.y + s * b.x + c * b.y, a.heading + b.heading};
-}
-
 // Root motion of `space` from t over dn of normalised time at weights w (a cyclic space may
 // run past t = 1; a one-shot clamps at 1), in the root frame at t.
 RootPose root_delta(const MotionSpace& space, double t, double dn, std::span<const float> w) {
@@ -445,7 +434,7 @@ void Character::advance(CharacterState* s, double seconds, bool commit) {
     // Steering: half the turn before the segment's translation, half after (midpoint rule).
     const double turn = s->turn_rate * used;
     s->root.heading += 0.5 * turn;
-    s->root = compose(s->root, delta);
+    s->root = root_compose(s->root, delta);
     s->root.heading += 0.5 * turn;
 
     s->t = space.cyclic() ? wrap01(s->t + dn) : std::min(1.0, s->t + dn);

@@ -1,7 +1,10 @@
 #pragma once
-// Ground-plane rigid motions of the character's root (x, y, heading), as RootPose of
-// runtime/motion_space.h: p -> R(heading) p + (x, y). Header-only; used by the motion graph,
-// the transition search and the runtime's root integration.
+// Ground-plane rigid motions (SE(2)) of the character's root (x, y, heading), as RootPose of
+// runtime/motion_space.h (float, within a motion space) or RootTransform of
+// runtime/character.h (double, in the world): p -> R(heading) p + (x, y); and the wrapping of
+// headings and of cyclic normalised time. Header-only; the one home of this maths for the
+// runtime and for the stages that build its assets (the graph stage's similarity), which link
+// the runtime; pipeline/ has no use for it.
 #include <cmath>
 #include <numbers>
 
@@ -9,9 +12,12 @@
 
 namespace fourd {
 
-// a * b: apply b, then a.
-inline RootPose root_compose(const RootPose& a, const RootPose& b) {
-  const float c = std::cos(a.heading), s = std::sin(a.heading);
+// a * b: apply b, then a. In a's precision: a RootPose (float) or a RootTransform (double)
+// composed with a RootPose delta.
+template <class A, class B>
+A root_compose(const A& a, const B& b) {
+  using Scalar = decltype(a.heading);
+  const Scalar c = std::cos(a.heading), s = std::sin(a.heading);
   return {a.x + c * b.x - s * b.y, a.y + s * b.x + c * b.y, a.heading + b.heading};
 }
 
@@ -29,6 +35,12 @@ inline RootPose root_relative(const RootPose& a, const RootPose& b) {
 // same continuous curve or from deltas of a few degrees).
 inline RootPose root_lerp(const RootPose& a, const RootPose& b, float f) {
   return {a.x + f * (b.x - a.x), a.y + f * (b.y - a.y), a.heading + f * (b.heading - a.heading)};
+}
+
+// Cyclic normalised time wrapped to [0, 1).
+inline double wrap01(double t) {
+  const double w = t - std::floor(t);
+  return w >= 1.0 ? 0.0 : w;
 }
 
 // Heading wrapped to (-pi, pi].

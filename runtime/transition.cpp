@@ -8,17 +8,13 @@
 #include <limits>
 
 #include "pipeline/core/error.h"
+#include "runtime/root_math.h"
 
 namespace fourd {
 
 namespace {
 
 constexpr double kTimeTolerance = 1e-9;
-
-double wrap01(double t) {
-  const double w = t - std::floor(t);
-  return w >= 1.0 ? 0.0 : w;
-}
 
 double clamp_parameter(const GraphSpace& space, double p) {
   const double lo = space.parameter_min(), hi = space.parameter_max();

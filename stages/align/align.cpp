@@ -23,6 +23,7 @@
 #include "pipeline/core/log.h"
 #include "pipeline/core/mesh_io.h"
 #include "pipeline/core/statistics.h"
+#include "pipeline/geometry/measures.h"
 #include "stages/align/mesh_tools.h"
 #include "stages/align/shape_tree.h"
 #include "stages/align/surface_query.h"

@@ -1,9 +1,6 @@
 #include "stages/align/mesh_tools.h"
 
 #include <Eigen/Geometry>
-#include <OpenMesh/Core/IO/MeshIO.hh>
-#include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
-#include <OpenMesh/Core/System/omstream.hh>
 #include <OpenMesh/Tools/Decimater/DecimaterT.hh>
 #include <OpenMesh/Tools/Decimater/ModNormalFlippingT.hh>
 #include <OpenMesh/Tools/Decimater/ModQuadricT.hh>
@@ -14,83 +11,20 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <numeric>
 #include <queue>
 #include <limits>
-#include <unordered_map>
 
 #include "pipeline/core/error.h"
 #include "pipeline/core/isosurface.h"
+#include "pipeline/geometry/components.h"
+#include "pipeline/geometry/measures.h"
+#include "pipeline/geometry/openmesh_adapter.h"
 #include "stages/align/surface_query.h"
 
 namespace fourd::align {
 namespace {
 
-using OMesh = OpenMesh::TriMesh_ArrayKernelT<>;
-
-// OpenMesh reports rejected faces on its own error stream; library code prints nothing, and
-// check_manifold() counts them instead.
-void silence_openmesh() {
-  static const bool done = [] {
-    omerr().disable();
-    omlog().disable();
-    return true;
-  }();
-  (void)done;
-}
-
-std::uint64_t edge_key(int a, int b) {
-  if (a > b) std::swap(a, b);
-  return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) |
-         static_cast<std::uint32_t>(b);
-}
-
-struct UnionFind {
-  std::vector<int> parent;
-  explicit UnionFind(std::size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
-  int find(int x) {
-    while (parent[x] != x) x = parent[x] = parent[parent[x]];
-    return x;
-  }
-  void unite(int a, int b) { parent[find(a)] = find(b); }
-};
-
-bool degenerate_indices(const Tri& t) { return t[0] == t[1] || t[1] == t[2] || t[0] == t[2]; }
-
-// Builds a halfedge mesh; triangles it cannot hold are counted in *rejected.
-OMesh to_openmesh(const Mesh& mesh, int* rejected) {
-  silence_openmesh();
-  OMesh om;
-  std::vector<OMesh::VertexHandle> handles;
-  handles.reserve(mesh.num_vertices());
-  for (const Vec3f& p : mesh.positions) handles.push_back(om.add_vertex({p.x(), p.y(), p.z()}));
-  int bad = 0;
-  for (const Tri& t : mesh.triangles) {
-    if (degenerate_indices(t) || !om.add_face(handles[t[0]], handles[t[1]], handles[t[2]]).is_valid()) {
-      ++bad;
-    }
-  }
-  if (rejected) *rejected = bad;
-  return om;
-}
-
-Mesh from_openmesh(OMesh& om) {
-  om.garbage_collection();
-  Mesh mesh;
-  mesh.positions.reserve(om.n_vertices());
-  for (auto v : om.vertices()) {
-    const auto& p = om.point(v);
-    mesh.positions.emplace_back(p[0], p[1], p[2]);
-  }
-  mesh.triangles.reserve(om.n_faces());
-  for (auto f : om.faces()) {
-    Tri t;
-    int k = 0;
-    for (auto v : om.fv_range(f)) t[k++] = v.idx();
-    mesh.triangles.push_back(t);
-  }
-  return mesh;
-}
+using OMesh = OpenMeshF;
 
 Vec3f to_eigen(const OMesh::Point& p) { return {p[0], p[1], p[2]}; }
 OMesh::Point to_om(const Vec3f& p) { return {p.x(), p.y(), p.z()}; }
@@ -199,95 +133,6 @@ void request_status(OMesh& om) {
 
 }  // namespace
 
-ManifoldReport check_manifold(const Mesh& mesh) {
-  ManifoldReport report;
-  std::unordered_map<std::uint64_t, int> edge_faces;
-  edge_faces.reserve(mesh.triangles.size() * 2);
-  UnionFind components(mesh.num_vertices());
-  for (const Tri& t : mesh.triangles) {
-    for (int k = 0; k < 3; ++k) {
-      ++edge_faces[edge_key(t[k], t[(k + 1) % 3])];
-      components.unite(t[k], t[(k + 1) % 3]);
-    }
-  }
-  for (const auto& [key, count] : edge_faces) {
-    if (count > 2) ++report.non_manifold_edges;
-    if (count == 1) ++report.boundary_edges;
-  }
-  std::vector<char> root_seen(mesh.num_vertices(), 0);
-  for (const Tri& t : mesh.triangles) {
-    int r = components.find(t[0]);
-    if (!root_seen[r]) {
-      root_seen[r] = 1;
-      ++report.components;
-    }
-  }
-  to_openmesh(mesh, &report.rejected_faces);
-  if (report.manifold() && report.boundary_edges == 0) {
-    // Euler: V - E + F = 2 (components - handles), over the vertices the triangles use.
-    std::vector<char> used(mesh.num_vertices(), 0);
-    for (const Tri& t : mesh.triangles) used[t[0]] = used[t[1]] = used[t[2]] = 1;
-    const long euler = static_cast<long>(std::count(used.begin(), used.end(), 1)) -
-                       static_cast<long>(edge_faces.size()) +
-                       static_cast<long>(mesh.triangles.size());
-    report.handles = static_cast<int>((2L * report.components - euler) / 2);
-  }
-  return report;
-}
-
-double surface_area(const Mesh& mesh) {
-  double area = 0;
-  for (const Tri& t : mesh.triangles) {
-    const Vec3f& a = mesh.positions[t[0]];
-    area += 0.5 * (mesh.positions[t[1]] - a).cross(mesh.positions[t[2]] - a).norm();
-  }
-  return area;
-}
-
-double enclosed_volume(const Mesh& mesh) {
-  double six_volume = 0;
-  for (const Tri& t : mesh.triangles) {
-    const Eigen::Vector3d a = mesh.positions[t[0]].cast<double>(),
-                          b = mesh.positions[t[1]].cast<double>(),
-                          c = mesh.positions[t[2]].cast<double>();
-    six_volume += a.dot(b.cross(c));
-  }
-  return six_volume / 6;
-}
-
-Mesh largest_component(const Mesh& mesh) {
-  UnionFind uf(mesh.num_vertices());
-  for (const Tri& t : mesh.triangles) {
-    uf.unite(t[0], t[1]);
-    uf.unite(t[1], t[2]);
-  }
-  std::unordered_map<int, double> area;
-  for (const Tri& t : mesh.triangles) {
-    const Vec3f& a = mesh.positions[t[0]];
-    area[uf.find(t[0])] += (mesh.positions[t[1]] - a).cross(mesh.positions[t[2]] - a).norm();
-  }
-  if (area.empty()) return {};
-  int best = std::max_element(area.begin(), area.end(), [](const auto& x, const auto& y) {
-               return x.second < y.second;
-             })->first;
-  Mesh out;
-  std::vector<int> remap(mesh.num_vertices(), -1);
-  for (const Tri& t : mesh.triangles) {
-    if (uf.find(t[0]) != best) continue;
-    Tri nt;
-    for (int k = 0; k < 3; ++k) {
-      int& r = remap[t[k]];
-      if (r < 0) {
-        r = static_cast<int>(out.positions.size());
-        out.positions.push_back(mesh.positions[t[k]]);
-      }
-      nt[k] = r;
-    }
-    out.triangles.push_back(nt);
-  }
-  return out;
-}
-
 Mesh remesh_to_vertex_count(const Mesh& mesh, int target_vertices, int iterations) {
   if (target_vertices < 12) {
     throw InputError(fmt::format("template: {} vertices is too few (at least 12)", target_vertices));
@@ -295,7 +140,7 @@ Mesh remesh_to_vertex_count(const Mesh& mesh, int target_vertices, int iteration
   Mesh part = largest_component(mesh);
   if (part.empty()) throw InputError("template: the mesh has no triangles");
   int rejected = 0;
-  OMesh om = to_openmesh(part, &rejected);
+  OMesh om = to_openmesh<OMesh>(part, &rejected);
   if (rejected > 0) {
     throw InputError(fmt::format(
         "template: {} triangles of the mesh are not manifold (a halfedge mesh cannot hold them)",
@@ -443,19 +288,6 @@ Mesh remove_small_handles(const Mesh& mesh, double voxel, int max_radius, double
   return best;
 }
 
-std::vector<std::vector<int>> vertex_neighbours(const Mesh& mesh) {
-  int rejected = 0;
-  OMesh om = to_openmesh(mesh, &rejected);
-  if (rejected > 0) {
-    throw InputError(fmt::format("mesh: {} triangles are not manifold", rejected));
-  }
-  std::vector<std::vector<int>> rings(mesh.num_vertices());
-  for (auto v : om.vertices()) {
-    for (auto w : om.vv_range(v)) rings[v.idx()].push_back(w.idx());
-  }
-  return rings;
-}
-
 std::vector<int> geodesic_update(const Mesh& mesh, const std::vector<std::vector<int>>& rings,
                                  int source, int source_id, double radius,
                                  std::vector<double>& dist, std::vector<int>& owner) {
@@ -483,21 +315,6 @@ std::vector<int> geodesic_update(const Mesh& mesh, const std::vector<std::vector
     }
   }
   return reached;
-}
-
-std::vector<std::vector<int>> edge_neighbours(const Mesh& mesh) {
-  std::vector<std::vector<int>> rings(mesh.num_vertices());
-  for (const Tri& t : mesh.triangles) {
-    for (int k = 0; k < 3; ++k) {
-      rings[t[k]].push_back(t[(k + 1) % 3]);
-      rings[t[k]].push_back(t[(k + 2) % 3]);
-    }
-  }
-  for (auto& ring : rings) {
-    std::sort(ring.begin(), ring.end());
-    ring.erase(std::unique(ring.begin(), ring.end()), ring.end());
-  }
-  return rings;
 }
 
 }  // namespace fourd::align

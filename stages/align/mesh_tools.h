@@ -1,38 +1,13 @@
 #pragma once
-// Halfedge-mesh work for alignment, backed by OpenMesh: manifold checks of the input frames,
-// connected components, the template's isotropic remeshing to a vertex budget, and vertex
-// neighbourhoods.
+// Mesh work particular to alignment: the template's isotropic remeshing to a vertex budget
+// (OpenMesh, with projection by align's surface query), the removal of thin handles, and
+// geodesic distances. The general mesh algorithms are in pipeline/geometry/.
 #include <vector>
 
 #include "pipeline/core/mesh.h"
 #include "stages/align/shape_descriptor.h"
 
 namespace fourd::align {
-
-struct ManifoldReport {
-  int non_manifold_edges = 0;  // edges shared by more than two triangles
-  int rejected_faces = 0;      // triangles a halfedge mesh cannot hold (non-manifold vertex or
-                               // edge, duplicated or degenerate triangle)
-  int boundary_edges = 0;      // edges with one triangle (holes)
-  int components = 0;          // connected components of the triangles
-  // Handles (genus) summed over the components of a closed manifold mesh: 0 for a surface
-  // like a sphere, 1 more for every tunnel, e.g. where an arm touching the body has merged
-  // with it. -1 when the mesh has holes or is not manifold.
-  int handles = -1;
-  bool manifold() const { return non_manifold_edges == 0 && rejected_faces == 0; }
-};
-
-ManifoldReport check_manifold(const Mesh& mesh);
-
-// The connected component (through shared vertices) with the largest surface area, with
-// unused vertices dropped. Positions and triangles only.
-Mesh largest_component(const Mesh& mesh);
-
-// Total triangle area [m^2].
-double surface_area(const Mesh& mesh);
-
-// Volume enclosed by a closed, outward-oriented mesh [m^3] (divergence theorem).
-double enclosed_volume(const Mesh& mesh);
 
 // A closed manifold mesh of exactly `target_vertices` vertices with near-equilateral
 // triangles approximating `mesh` (its largest component): isotropic remeshing (split, collapse,
@@ -56,13 +31,6 @@ Mesh surface_of_solid(const Mesh& mesh, const SolidGrid& solid);
 // no result has fewer handles than it.
 Mesh remove_small_handles(const Mesh& mesh, double voxel, int max_radius,
                           double min_volume = 0.98);
-
-// Neighbours of every vertex (its one-ring, in circulation order). Throws InputError if the
-// mesh is not manifold.
-std::vector<std::vector<int>> vertex_neighbours(const Mesh& mesh);
-
-// Neighbours of every vertex through the triangles' edges, sorted; no manifold requirement.
-std::vector<std::vector<int>> edge_neighbours(const Mesh& mesh);
 
 // Dijkstra along mesh edges (`rings`: neighbours of every vertex) from `source`, lowering
 // `dist` where it finds shorter paths (so repeated calls give the distance to the nearest

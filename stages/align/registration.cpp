@@ -13,6 +13,7 @@
 
 #include "pipeline/core/error.h"
 #include "pipeline/core/log.h"
+#include "pipeline/geometry/measures.h"
 #include "stages/align/mesh_tools.h"
 
 namespace fourd::align {

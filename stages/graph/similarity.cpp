@@ -33,11 +33,6 @@ void velocity(const float* x, const float* prev, int nv, const RootPose& a, floa
   }
 }
 
-double wrap01(double t) {
-  const double w = t - std::floor(t);
-  return w >= 1.0 ? 0.0 : w;
-}
-
 }  // namespace
 
 Eigen::MatrixXf input_features(const MotionSpace& space, int input,

@@ -6,9 +6,9 @@
 #include <Eigen/SVD>
 #include <Eigen/SparseCore>
 #include <cmath>
-#include <numeric>
 
 #include "pipeline/core/error.h"
+#include "pipeline/geometry/union_find.h"
 
 namespace fourd {
 
@@ -72,11 +72,6 @@ std::vector<double> checked_weights(std::span<const double> w, int num_inputs) {
   return out;
 }
 
-int find_root(std::vector<int>& parent, int v) {
-  while (parent[v] != v) v = parent[v] = parent[parent[v]];
-  return v;
-}
-
 }  // namespace
 
 void nonlinear_blend_precompute(const Eigen::Matrix3Xd& reference, std::span<const Tri> triangles,
@@ -96,8 +91,7 @@ void nonlinear_blend_precompute(const Eigen::Matrix3Xd& reference, std::span<con
 
   // Connected components (union-find), one pinned vertex each: the Laplacian's null space is
   // one translation per component, so pinning makes the system positive definite.
-  std::vector<int> parent(nv);
-  std::iota(parent.begin(), parent.end(), 0);
+  UnionFind sets(nv);
   for (int f = 0; f < nf; ++f) {
     const Tri& t = triangles[f];
     for (int k = 0; k < 3; ++k) {
@@ -126,16 +120,15 @@ void nonlinear_blend_precompute(const Eigen::Matrix3Xd& reference, std::span<con
     d.hat_gradients[f].col(0) = nh.cross(p2 - p1) / twice_area;
     d.hat_gradients[f].col(1) = nh.cross(p0 - p2) / twice_area;
     d.hat_gradients[f].col(2) = nh.cross(p1 - p0) / twice_area;
-    const int r0 = find_root(parent, t[0]);
-    parent[find_root(parent, t[1])] = r0;
-    parent[find_root(parent, t[2])] = r0;
+    sets.unite(t[0], t[1]);
+    sets.unite(t[0], t[2]);
   }
   d.component.assign(nv, -1);
   d.unknown.assign(nv, -1);
   std::vector<int> component_of_root(nv, -1);
   int num_unknowns = 0;
   for (int v = 0; v < nv; ++v) {
-    const int root = find_root(parent, v);
+    const int root = sets.find(v);
     if (component_of_root[root] < 0) {
       component_of_root[root] = static_cast<int>(d.pinned.size());
       d.pinned.push_back(v);  // the first vertex of each component stays fixed

@@ -1,6 +1,7 @@
 #pragma once
-// Turning a raw reconstructed surface into the mesh later stages want: one closed component,
-// no holes, a given number of well-shaped triangles.
+// Turning a raw reconstructed surface into the mesh later stages want: a given number of
+// well-shaped triangles (the options of pipeline/geometry/remesh.h's remeshing; its largest
+// component and hole filling are pipeline/geometry/components.h's and repair.h's).
 #include <string>
 
 #include "pipeline/core/config.h"
@@ -34,18 +35,12 @@ struct RemeshOptions {
   }
 };
 
-// The connected component (through shared vertices) with the largest area; unreferenced
-// vertices are dropped.
-Mesh keep_largest_component(const Mesh& mesh);
-
-// Closes every hole (boundary loop) with a triangulated, refined and faired patch (CGAL).
-// Returns the number of holes filled.
-int fill_holes(Mesh& mesh);
-
-// Remeshing to about `options.target_vertices` vertices: quadric decimation (OpenMesh) down to
-// decimate_factor x target, then isotropic remeshing (CGAL) at the edge length that gives the
-// target count on the mesh's area. With iterations = 0, quadric decimation straight to the
-// target (well-placed vertices, less regular triangles; fast). Throws InputError when the mesh is not a manifold surface.
+// Remeshing to about `options.target_vertices` vertices (remesh_to_target of
+// pipeline/geometry/remesh.h in the options' mode): quadric decimation (OpenMesh) down to the
+// target (relax) or decimate_factor x target (isotropic), then relaxation or isotropic
+// remeshing (CGAL) at the edge length that gives the target count on the mesh's area. With
+// iterations = 0, quadric decimation straight to the target (well-placed vertices, less
+// regular triangles; fast). Throws InputError when the mesh is not a manifold surface.
 Mesh remesh(const Mesh& mesh, const RemeshOptions& options);
 
 }  // namespace fourd::reconstruct

@@ -21,6 +21,9 @@
 #include "pipeline/core/isosurface.h"
 #include "pipeline/core/log.h"
 #include "pipeline/core/mesh_io.h"
+#include "pipeline/geometry/components.h"
+#include "pipeline/geometry/measures.h"
+#include "pipeline/geometry/repair.h"
 #include "stages/reconstruct/colmap_tool.h"
 #include "stages/reconstruct/raycast.h"
 
@@ -77,19 +80,6 @@ cv::Mat undistorted_gray(const cv::Mat& bgr, const Undistorter& undistorter) {
   return undistorter.apply(f, cv::INTER_LINEAR);
 }
 
-std::size_t boundary_edges(const Mesh& mesh) {
-  std::map<std::pair<int, int>, int> edges;
-  for (const Tri& t : mesh.triangles) {
-    for (int k = 0; k < 3; ++k) {
-      int a = t[k], b = t[(k + 1) % 3];
-      edges[{std::min(a, b), std::max(a, b)}] += 1;
-    }
-  }
-  std::size_t n = 0;
-  for (const auto& [e, count] : edges) n += count == 1;
-  return n;
-}
-
 // Drops faces with a vertex more than `tolerance` outside the hull.
 Mesh trim_to_hull(const Mesh& mesh, const VisualHull& hull, double tolerance) {
   std::vector<char> outside(mesh.positions.size());
@@ -101,7 +91,7 @@ Mesh trim_to_hull(const Mesh& mesh, const VisualHull& hull, double tolerance) {
   for (const Tri& t : mesh.triangles) {
     if (!outside[t[0]] && !outside[t[1]] && !outside[t[2]]) out.triangles.push_back(t);
   }
-  return keep_largest_component(out);
+  return largest_component(out);
 }
 
 }  // namespace
@@ -124,7 +114,7 @@ FrameResult reconstruct_frame(const Rig& rig, const FrameInput& input,
     return result;
   }
   Mesh hull_mesh =
-      keep_largest_component(extract_isosurface(subsample(field, options.isosurface_step), 0.0f));
+      largest_component(extract_isosurface(subsample(field, options.isosurface_step), 0.0f));
   if (hull_mesh.triangles.empty()) {
     result.failure = "the visual hull has no surface";
     return result;
@@ -135,7 +125,7 @@ FrameResult reconstruct_frame(const Rig& rig, const FrameInput& input,
     // (decimating or remeshing it would cost as much as the final mesh's remeshing).
     result.visual_hull = options.visual_hull_step == options.isosurface_step
                              ? hull_mesh
-                             : keep_largest_component(extract_isosurface(
+                             : largest_component(extract_isosurface(
                                    subsample(field, options.visual_hull_step), 0.0f));
     timer.done("visual_hull_remesh");
   }
@@ -203,7 +193,7 @@ FrameResult reconstruct_frame(const Rig& rig, const FrameInput& input,
         FusionOptions guide_fusion = options.fusion;
         guide_fusion.filled_weight = options.guided.filled_weight;
         fuse_depth_maps(guide_field, pinholes, depth_maps, options.depth.min_ncc, guide_fusion);
-        const Mesh guide = keep_largest_component(
+        const Mesh guide = largest_component(
             extract_isosurface(subsample(guide_field, options.isosurface_step), 0.0f));
         if (guide.triangles.empty()) break;
         MeshRaycaster guide_caster(guide);
@@ -225,7 +215,7 @@ FrameResult reconstruct_frame(const Rig& rig, const FrameInput& input,
       fuse_depth_maps(field, pinholes, depth_maps, options.depth.min_ncc, options.fusion,
                       &depth_weight);
       timer.done("fusion");
-      surface = keep_largest_component(
+      surface = largest_component(
           extract_isosurface(subsample(field, options.isosurface_step), 0.0f));
       timer.done("isosurface");
     } else {
@@ -268,7 +258,7 @@ FrameResult reconstruct_frame(const Rig& rig, const FrameInput& input,
   }
 
   // 4. One closed, remeshed surface.
-  if (boundary_edges(surface) > 0) {
+  if (count_boundary_edges(surface) > 0) {
     int holes = fill_holes(surface);
     if (holes > 0) result.warnings.push_back(fmt::format("filled {} hole(s)", holes));
     timer.done("fill_holes");

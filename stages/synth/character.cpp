@@ -9,28 +9,19 @@
 #include <numeric>
 
 #include "pipeline/core/error.h"
+#include "pipeline/geometry/components.h"
+#include "pipeline/geometry/measures.h"
+#include "pipeline/geometry/remesh.h"
 #include "stages/synth/body_model.h"
 #include "stages/synth/character.h"
 #include "stages/synth/clothing.h"
 #include "stages/synth/implicit_mesh.h"
-#include "stages/synth/remesh.h"
 
 namespace fourd::synth {
 namespace {
 
 using detail::BodyModel;
 using Eigen::Vector3d;
-
-double surface_area(const Mesh& mesh) {
-  double area = 0;
-  for (const Tri& t : mesh.triangles) {
-    const Vector3d a = mesh.positions[static_cast<std::size_t>(t[0])].cast<double>();
-    const Vector3d b = mesh.positions[static_cast<std::size_t>(t[1])].cast<double>();
-    const Vector3d c = mesh.positions[static_cast<std::size_t>(t[2])].cast<double>();
-    area += 0.5 * (b - a).cross(c - a).norm();
-  }
-  return area;
-}
 
 // Every edge used once in each direction: closed, manifold along edges, consistently oriented.
 void require_closed_oriented(const Mesh& mesh) {
@@ -77,29 +68,14 @@ Mesh mesh_body(const BodyModel& body, int target_vertices) {
   body_bounds(body, 3 * spacing + 3 * body.blend_radius, &lo, &hi);
   const ScalarGrid grid = detail::sample_distance_field([&](const Vector3d& p) { return body_field(body, p); }, lo,
                                                        hi, spacing, 1.5);
-  const Mesh dense = detail::largest_component(extract_isosurface(grid));
+  const Mesh dense = largest_component(extract_isosurface(grid));
   const double area = surface_area(dense);
   double edge = std::sqrt(2 * area / (std::sqrt(3.0) * target_vertices));
-  Mesh mesh = detail::remesh_isotropic(dense, edge, 2);
+  Mesh mesh = remesh_isotropic(dense, edge, 2);
   edge *= std::sqrt(static_cast<double>(mesh.num_vertices()) / target_vertices);
-  mesh = detail::remesh_isotropic(mesh, edge, 3);
+  mesh = remesh_isotropic(mesh, edge, 3);
   project_to_surface(body, mesh);
   return mesh;
-}
-
-std::vector<std::vector<int>> vertex_neighbours(const Mesh& mesh) {
-  std::vector<std::vector<int>> adj(mesh.num_vertices());
-  for (const Tri& t : mesh.triangles) {
-    for (int c = 0; c < 3; ++c) {
-      adj[static_cast<std::size_t>(t[c])].push_back(t[(c + 1) % 3]);
-      adj[static_cast<std::size_t>(t[c])].push_back(t[(c + 2) % 3]);
-    }
-  }
-  for (auto& a : adj) {
-    std::sort(a.begin(), a.end());
-    a.erase(std::unique(a.begin(), a.end()), a.end());
-  }
-  return adj;
 }
 
 // The bones where the limbs join the trunk.
@@ -138,7 +114,7 @@ Eigen::MatrixXd dense_weights(const BodyModel& body, const Mesh& mesh,
     }
     w.row(static_cast<Eigen::Index>(v)) /= w.row(static_cast<Eigen::Index>(v)).sum();
   }
-  const auto adj = vertex_neighbours(mesh);
+  const auto adj = edge_neighbours(mesh);
   for (int round = 0; round < options.skin_smoothing; ++round) {
     Eigen::MatrixXd next = w;
     for (std::size_t v = 0; v < nv; ++v) {

@@ -4,22 +4,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numeric>
 
 namespace fourd::synth::detail {
-namespace {
 
 using Eigen::Vector3d;
-
-int find_root(std::vector<int>& parent, int x) {
-  while (parent[static_cast<std::size_t>(x)] != x) {
-    parent[static_cast<std::size_t>(x)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(x)])];
-    x = parent[static_cast<std::size_t>(x)];
-  }
-  return x;
-}
-
-}  // namespace
 
 ScalarGrid sample_field(const std::function<double(const Vector3d&)>& field, const Vector3d& lo,
                         const Vector3d& hi, double spacing) {
@@ -86,37 +74,6 @@ ScalarGrid sample_distance_field(const std::function<double(const Vector3d&)>& f
     }
   });
   return grid;
-}
-
-Mesh largest_component(const Mesh& mesh) {
-  const int nv = static_cast<int>(mesh.positions.size());
-  std::vector<int> parent(static_cast<std::size_t>(nv));
-  std::iota(parent.begin(), parent.end(), 0);
-  for (const Tri& t : mesh.triangles) {
-    for (int c = 1; c < 3; ++c) {
-      const int a = find_root(parent, t[0]), b = find_root(parent, t[c]);
-      if (a != b) parent[static_cast<std::size_t>(std::max(a, b))] = std::min(a, b);
-    }
-  }
-  std::vector<int> count(static_cast<std::size_t>(nv), 0);
-  for (const Tri& t : mesh.triangles) ++count[static_cast<std::size_t>(find_root(parent, t[0]))];
-  const int best = static_cast<int>(std::max_element(count.begin(), count.end()) - count.begin());
-  Mesh out;
-  std::vector<int> remap(static_cast<std::size_t>(nv), -1);
-  for (const Tri& t : mesh.triangles) {
-    if (find_root(parent, t[0]) != best) continue;
-    Tri nt;
-    for (int c = 0; c < 3; ++c) {
-      int& r = remap[static_cast<std::size_t>(t[c])];
-      if (r < 0) {
-        r = static_cast<int>(out.positions.size());
-        out.positions.push_back(mesh.positions[static_cast<std::size_t>(t[c])]);
-      }
-      nt[c] = r;
-    }
-    out.triangles.push_back(nt);
-  }
-  return out;
 }
 
 }  // namespace fourd::synth::detail

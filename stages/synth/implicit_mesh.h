@@ -1,5 +1,5 @@
 #pragma once
-// Sampling an implicit function on a grid, and mesh clean-up. Internal to the synth stage.
+// Sampling an implicit function on a grid. Internal to the synth stage.
 #include <Eigen/Core>
 #include <functional>
 
@@ -20,8 +20,5 @@ ScalarGrid sample_field(const std::function<double(const Eigen::Vector3d&)>& fie
 ScalarGrid sample_distance_field(const std::function<double(const Eigen::Vector3d&)>& field,
                                  const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, double spacing,
                                  double lipschitz);
-
-// The connected component with the most triangles, vertices renumbered in order of first use.
-Mesh largest_component(const Mesh& mesh);
 
 }  // namespace fourd::synth::detail

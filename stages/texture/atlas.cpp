@@ -12,13 +12,20 @@
 #include <unordered_map>
 
 #include "pipeline/core/error.h"
-#include "stages/texture/parameterize.h"
+#include "pipeline/geometry/parameterize.h"
 
 namespace fourd::texture {
 namespace {
 
 using Eigen::Vector2d;
 using Eigen::Vector3d;
+
+// "lscm" / "arap"; ConfigError naming `field` for anything else.
+FlattenMethod parse_flatten_method(const std::string& name, const std::string& field) {
+  if (name == "lscm") return FlattenMethod::kLscm;
+  if (name == "arap") return FlattenMethod::kArap;
+  throw ConfigError(fmt::format("{} = '{}': expected 'lscm' or 'arap'", field, name));
+}
 
 struct FaceGeometry {
   std::vector<Vector3d> normal;    // unit (zero for degenerate faces)

@@ -15,28 +15,9 @@
 #include "stages/align/mesh_tools.h"
 #include "stages/align/shape_descriptor.h"
 #include "stages/align/surface_query.h"
+#include "tests/test_shapes.h"
 
 namespace fourd::test {
-
-// Isosurface of `sdf` (negative inside) on a grid of `voxel` over [lo, hi].
-template <class Sdf>
-Mesh isosurface_of(const Sdf& sdf, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, double voxel) {
-  ScalarGrid grid;
-  grid.origin = lo;
-  grid.voxel = voxel;
-  grid.nx = static_cast<int>(std::ceil((hi.x() - lo.x()) / voxel)) + 1;
-  grid.ny = static_cast<int>(std::ceil((hi.y() - lo.y()) / voxel)) + 1;
-  grid.nz = static_cast<int>(std::ceil((hi.z() - lo.z()) / voxel)) + 1;
-  grid.values.resize(static_cast<std::size_t>(grid.nx) * grid.ny * grid.nz);
-  tbb::parallel_for(0, grid.nz, [&](int z) {
-    for (int y = 0; y < grid.ny; ++y) {
-      for (int x = 0; x < grid.nx; ++x) {
-        grid.values[grid.index(x, y, z)] = static_cast<float>(sdf(grid.point(x, y, z)));
-      }
-    }
-  });
-  return extract_isosurface(grid, 0.0f);
-}
 
 // The same closed surface with fresh connectivity: the isosurface of its signed distance on a
 // grid shifted by `offset` (a fraction of a voxel gives unrelated vertices and triangles).

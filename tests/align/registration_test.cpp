@@ -7,6 +7,7 @@
 #include <numbers>
 #include <algorithm>
 
+#include "pipeline/geometry/measures.h"
 #include "stages/align/mesh_tools.h"
 #include "tests/align/align_test_data.h"
 #include "tests/test_shapes.h"

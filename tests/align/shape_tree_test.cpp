@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "pipeline/core/error.h"
+#include "pipeline/geometry/measures.h"
 #include "stages/align/mesh_tools.h"
 #include "stages/align/shape_descriptor.h"
 #include "stages/align/surface_query.h"
@@ -72,32 +73,6 @@ TEST(ShapeTree, CentralFrameIsTheMedoidOrANearOneWithFewerHandles) {
   // Frames 0 and 1 have no handles but are far from central.
   EXPECT_EQ(central_frame(distance, {0, 0, 3, 3, 0}, 0.02), 2);
   EXPECT_THROW(central_frame(distance, {0, 0}, 0.02), InputError);
-}
-
-TEST(MeshTools, HandlesCountTheGenusOfAClosedMesh) {
-  EXPECT_EQ(check_manifold(test::make_icosphere(2)).handles, 0);
-
-  // A torus (one handle), and beside it a sphere: the genus is summed over components.
-  auto torus = [](const Eigen::Vector3d& p) {
-    const double ring = std::hypot(p.x(), p.y()) - 0.3;
-    return std::hypot(ring, p.z()) - 0.1;
-  };
-  Mesh mesh = test::isosurface_of(torus, {-0.5, -0.5, -0.2}, {0.5, 0.5, 0.2}, 0.02);
-  ManifoldReport report = check_manifold(mesh);
-  EXPECT_EQ(report.components, 1);
-  EXPECT_EQ(report.handles, 1);
-  const Mesh sphere = test::make_icosphere(1, 0.1f);
-  const int offset = static_cast<int>(mesh.num_vertices());
-  for (const Vec3f& p : sphere.positions) mesh.positions.push_back(p + Vec3f(2, 0, 0));
-  for (const Tri& t : sphere.triangles) mesh.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
-  report = check_manifold(mesh);
-  EXPECT_EQ(report.components, 2);
-  EXPECT_EQ(report.handles, 1);
-
-  // With a hole the genus is unknown.
-  Mesh open = test::make_icosphere(2);
-  open.triangles.pop_back();
-  EXPECT_EQ(check_manifold(open).handles, -1);
 }
 
 TEST(MeshTools, SmallHandlesAreRemovedAndLargeOnesKept) {

@@ -4,6 +4,7 @@
 // without the tip landmarks (one pass) and with them (the pass, the tips, and the retry).
 #include <benchmark/benchmark.h>
 
+#include "pipeline/geometry/measures.h"
 #include "stages/align/extremities.h"
 #include "stages/align/mesh_tools.h"
 #include "stages/align/registration.h"

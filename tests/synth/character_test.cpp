@@ -7,7 +7,7 @@
 #include <opencv2/imgproc.hpp>
 #include <set>
 
-#include "stages/synth/remesh.h"
+#include "pipeline/geometry/repair.h"
 #include "tests/synth/debug_render.h"
 
 namespace fourd::synth {
@@ -117,7 +117,7 @@ TEST(Character, ExtremeBodiesAreClosedSpheresToo) {
     expect_closed_manifold_sphere(c.skin.rest);
     EXPECT_NEAR(c.height, body.height, 1e-5);
     EXPECT_NEAR(static_cast<double>(c.skin.rest.num_vertices()), 3000.0, 300.0);
-    EXPECT_FALSE(detail::has_self_intersections(c.skin.rest));
+    EXPECT_FALSE(has_self_intersections(c.skin.rest));
   }
 }
 
@@ -129,7 +129,7 @@ TEST(Character, MeshFacesOutwardAndHasHumanVolume) {
 }
 
 TEST(Character, RestMeshDoesNotSelfIntersect) {
-  EXPECT_FALSE(detail::has_self_intersections(default_character().skin.rest));
+  EXPECT_FALSE(has_self_intersections(default_character().skin.rest));
 }
 
 TEST(Character, HeightAndFloorContactAsConfigured) {

@@ -1,17 +1,15 @@
-#include "stages/texture/parameterize.h"
+#include "pipeline/geometry/parameterize.h"
 
 #include <CGAL/Polygon_mesh_processing/border.h>
 #include <CGAL/Polygon_mesh_processing/measure.h>
 #include <CGAL/Simple_cartesian.h>
-#include <CGAL/Surface_mesh.h>
 #include <CGAL/Surface_mesh_parameterization/ARAP_parameterizer_3.h>
 #include <CGAL/Surface_mesh_parameterization/LSCM_parameterizer_3.h>
 #include <CGAL/Surface_mesh_parameterization/parameterize.h>
-#include <fmt/format.h>
 
-#include "pipeline/core/error.h"
+#include "pipeline/geometry/cgal_adapter.h"
 
-namespace fourd::texture {
+namespace fourd {
 namespace {
 
 using Kernel = CGAL::Simple_cartesian<double>;
@@ -22,28 +20,13 @@ namespace pmp = CGAL::Polygon_mesh_processing;
 
 }  // namespace
 
-FlattenMethod parse_flatten_method(const std::string& name, const std::string& field) {
-  if (name == "lscm") return FlattenMethod::kLscm;
-  if (name == "arap") return FlattenMethod::kArap;
-  throw ConfigError(fmt::format("{} = '{}': expected 'lscm' or 'arap'", field, name));
-}
-
 bool flatten_chart(const std::vector<Eigen::Vector3d>& positions, const std::vector<Tri>& triangles,
                    FlattenMethod method, std::vector<Eigen::Vector2d>* uv) {
   if (triangles.empty()) return false;
   SurfaceMesh mesh;
   std::vector<VertexIndex> vertices;
-  vertices.reserve(positions.size());
-  for (const Eigen::Vector3d& p : positions) {
-    vertices.push_back(mesh.add_vertex(Kernel::Point_3(p.x(), p.y(), p.z())));
-  }
-  for (const Tri& t : triangles) {
-    // A null face: the triangle would make the chart non-manifold.
-    if (mesh.add_face(vertices[t[0]], vertices[t[1]], vertices[t[2]]) ==
-        SurfaceMesh::null_face()) {
-      return false;
-    }
-  }
+  // A refused triangle would make the chart non-manifold.
+  if (cgal::add_triangles(mesh, positions, triangles, &vertices) >= 0) return false;
   // A disc: one border loop, Euler characteristic 1, no isolated vertices.
   std::vector<SurfaceMesh::Halfedge_index> borders;
   pmp::extract_boundary_cycles(mesh, std::back_inserter(borders));
@@ -78,4 +61,4 @@ bool flatten_chart(const std::vector<Eigen::Vector3d>& positions, const std::vec
   return true;
 }
 
-}  // namespace fourd::texture
+}  // namespace fourd

@@ -1,6 +1,5 @@
-#include "stages/reconstruct/decimate.h"
+#include "pipeline/geometry/decimate.h"
 
-#include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
 #include <OpenMesh/Tools/Decimater/DecimaterT.hh>
 #include <OpenMesh/Tools/Decimater/McDecimaterT.hh>
 #include <OpenMesh/Tools/Decimater/ModNormalFlippingT.hh>
@@ -9,7 +8,9 @@
 #include <cstdlib>
 #include <mutex>
 
-namespace fourd::reconstruct {
+#include "pipeline/geometry/openmesh_adapter.h"
+
+namespace fourd {
 namespace {
 
 struct Traits : OpenMesh::DefaultTraits {
@@ -44,11 +45,7 @@ Mesh decimate(const Mesh& mesh, int target_vertices, double max_normal_deviation
   if (target_vertices <= 0 || static_cast<int>(mesh.positions.size()) <= target_vertices) {
     return mesh;
   }
-  OMesh om;
-  std::vector<OMesh::VertexHandle> v;
-  v.reserve(mesh.positions.size());
-  for (const Vec3f& p : mesh.positions) v.push_back(om.add_vertex(OMesh::Point(p.x(), p.y(), p.z())));
-  for (const Tri& t : mesh.triangles) om.add_face(v[t[0]], v[t[1]], v[t[2]]);
+  OMesh om = to_openmesh<OMesh>(mesh);
   om.update_face_normals();
 
   // Down to a few times the target by the multiple-choice decimater (the best of a few random
@@ -69,27 +66,7 @@ Mesh decimate(const Mesh& mesh, int target_vertices, double max_normal_deviation
 
   // Vertices without a face (of input faces OpenMesh refused) are left out: remeshing would
   // trip over them.
-  Mesh out;
-  std::vector<int> index(om.n_vertices(), -1);
-  out.positions.reserve(om.n_vertices());
-  for (auto vh : om.vertices()) {
-    if (om.is_isolated(vh)) continue;
-    index[vh.idx()] = static_cast<int>(out.positions.size());
-    const auto& p = om.point(vh);
-    out.positions.emplace_back(static_cast<float>(p[0]), static_cast<float>(p[1]),
-                               static_cast<float>(p[2]));
-  }
-  out.triangles.reserve(om.n_faces());
-  for (auto fh : om.faces()) {
-    Tri t;
-    int k = 0;
-    for (auto vh : om.fv_range(fh)) {
-      if (k < 3) t[k] = index[vh.idx()];
-      ++k;
-    }
-    if (k == 3) out.triangles.push_back(t);
-  }
-  return out;
+  return from_openmesh(om, IsolatedVertices::kDrop);
 }
 
-}  // namespace fourd::reconstruct
+}  // namespace fourd

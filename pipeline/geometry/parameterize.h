@@ -1,21 +1,17 @@
 #pragma once
-// Flattening of one atlas chart with CGAL's Surface_mesh_parameterization (LSCM or ARAP).
-// Kept in its own .cpp: it is the only CGAL-heavy code of the texture stage.
+// Flattening of one atlas chart with CGAL's Surface_mesh_parameterization (LSCM or ARAP), kept
+// in parameterize.cpp: the texture stage's atlas flattens its charts with it.
 #include <Eigen/Core>
-#include <string>
 #include <vector>
 
 #include "pipeline/core/mesh.h"
 
-namespace fourd::texture {
+namespace fourd {
 
 enum class FlattenMethod {
   kLscm,  // least-squares conformal maps, two pinned border vertices (angle-preserving)
   kArap,  // as-rigid-as-possible, started from LSCM (also preserves area)
 };
-
-// "lscm" / "arap"; ConfigError naming `field` for anything else.
-FlattenMethod parse_flatten_method(const std::string& name, const std::string& field);
 
 // Flattens a chart given as its own small mesh: `positions` (#V, metres) and `triangles`
 // (#F, indices into positions) must form one manifold topological disc (one border loop).
@@ -25,4 +21,4 @@ FlattenMethod parse_flatten_method(const std::string& name, const std::string& f
 bool flatten_chart(const std::vector<Eigen::Vector3d>& positions, const std::vector<Tri>& triangles,
                    FlattenMethod method, std::vector<Eigen::Vector2d>* uv);
 
-}  // namespace fourd::texture
+}  // namespace fourd
