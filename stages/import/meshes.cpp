@@ -5,7 +5,7 @@
 #include "pipeline/core/error.h"
 #include "pipeline/core/mesh_io.h"
 #include "pipeline/core/session.h"
-#include "stages/align/mesh_tools.h"
+#include "pipeline/geometry/measures.h"
 
 namespace fourd::import {
 namespace {
@@ -102,7 +102,7 @@ MeshImportResult import_meshes(const std::vector<fs::path>& files, const std::ve
         }
         if (options.consistent) write_ply(template_file, mesh);
       }
-      const align::ManifoldReport manifold = align::check_manifold(mesh);
+      const ManifoldReport manifold = check_manifold(mesh);
       ++result.check.frames;
       if (manifold.boundary_edges > 0) {
         if (result.check.open_frames++ == 0) result.check.first_open = label;
