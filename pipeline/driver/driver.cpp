@@ -161,9 +161,10 @@ const std::vector<StageSpec>& stage_table() {
   // capture. Validate reads every stage's outputs plus the ground truth, and plays the
   // session's control scripts (play/) on the assets.
   static const std::vector<StageSpec> table = {
-      {.name = "synth", .outputs = {"capture", "calibration", "ground_truth"}},
+      {.name = "synth", .outputs = {"capture", "calibration", "ground_truth", "plates"}},
+      // Plates (the empty studio per camera) and supplied masks are a studio's raw data.
       {.name = "segment",
-       .inputs = {"capture", "calibration"},
+       .inputs = {"capture", "calibration", "plates", "masks"},
        .outputs = {"segment"},
        .frame_outputs = {"{take}/{camera}/{frame}.png"}},
       // Its per-frame record (.json) is written last and also for a frame that failed.

@@ -103,7 +103,7 @@ TEST(StageTable, PipelineOrderAndDataFlow) {
   EXPECT_EQ(names, (std::vector<std::string>{"synth", "segment", "reconstruct", "align", "timewarp", "motionspace",
                                              "texture", "graph", "validate"}));
   EXPECT_EQ(table.front().outputs,
-            (std::vector<std::string>{"capture", "calibration", "ground_truth"}));
+            (std::vector<std::string>{"capture", "calibration", "ground_truth", "plates"}));
   EXPECT_TRUE(table.front().inputs.empty());
   EXPECT_EQ(table.back().outputs, (std::vector<std::string>{"reports"}));
   // Every folder a stage reads is written by an earlier stage, and no two stages share an
@@ -112,9 +112,10 @@ TEST(StageTable, PipelineOrderAndDataFlow) {
   for (const auto& s : table) {
     for (const auto& in : s.inputs) {
       // Oracle folders are written by the oracle runs (with_oracle_variants), not the table;
-      // control scripts by the user.
+      // control scripts and supplied masks by the user.
       bool oracle = in == kOracleFolder || in.ends_with("_oracle");
-      EXPECT_TRUE(oracle || in == kPlayFolder || written.count(in)) << s.name << " reads " << in;
+      bool user = in == kPlayFolder || in == "masks";
+      EXPECT_TRUE(oracle || user || written.count(in)) << s.name << " reads " << in;
     }
     for (const auto& out : s.outputs) EXPECT_TRUE(written.insert(out).second) << out;
   }

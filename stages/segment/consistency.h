@@ -1,0 +1,39 @@
+#pragma once
+// Cross-camera consistency of one frame's silhouettes. A coarse voxel grid over the volume the
+// cameras share is carved by every camera's silhouette, a voxel kept when at most one of the
+// cameras that see it disagrees (so that one bad camera neither carves nor adds); the hull is
+// then splatted back into each camera, and the fraction of that camera's silhouette it covers is
+// how well the other cameras explain it. A silhouette with foreground the others do not see
+// (a key that took part of the backdrop) is poorly explained.
+//
+// Unlike reconstruct's VisualHull (a fine signed-distance field for the surface), this is a
+// cheap vote on a fixed grid whose projections are computed once per rig.
+#include <opencv2/core.hpp>
+#include <vector>
+
+#include "pipeline/core/camera.h"
+
+namespace fourd::segment {
+
+class ConsistencyCheck {
+ public:
+  // The grid (kGrid^3 voxels) spans the points that most cameras see, around the point their
+  // optical axes pass nearest.
+  explicit ConsistencyCheck(const std::vector<Camera>& cameras);
+
+  // Per camera, the fraction of its silhouette (CV_8UC1, nonzero = foreground) covered by the
+  // hull's projection; -1 for an empty silhouette or when fewer than kMinCameras cameras are
+  // checked (the hull of one or two views explains everything).
+  std::vector<double> explained(const std::vector<cv::Mat>& silhouettes) const;
+
+  bool usable() const { return usable_; }
+
+ private:
+  const std::vector<Camera>& cameras_;
+  std::vector<Eigen::Vector3d> centres_;     // voxel centres seen by enough cameras
+  std::vector<std::int32_t> pixel_;          // [voxel * cameras + camera]: pixel index or -1
+  std::vector<float> radius_px_;             // [voxel * cameras + camera]: projected radius
+  bool usable_ = false;
+};
+
+}  // namespace fourd::segment
