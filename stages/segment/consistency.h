@@ -26,6 +26,13 @@ class ConsistencyCheck {
   // checked (the hull of one or two views explains everything).
   std::vector<double> explained(const std::vector<cv::Mat>& silhouettes) const;
 
+  // Adds to each silhouette the pixels of `doubtful[c]` (CV_8UC1) that the visual hull of all
+  // silhouettes and doubtful pixels explains with voxels that at least kMinConfirming cameras
+  // see as surely foreground (their silhouette without doubt): the performer, where one camera
+  // took it for background and others did not. A shadow on the floor is doubtful in every camera
+  // and stays background. Then cleaned up again by the caller.
+  void recover(std::vector<cv::Mat>& silhouettes, const std::vector<cv::Mat>& doubtful) const;
+
   bool usable() const { return usable_; }
 
  private:

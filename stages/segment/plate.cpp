@@ -115,7 +115,7 @@ cv::Vec3d background_gain(const cv::Mat& bgr, const PlateModel& plate) {
 }
 
 cv::Mat plate_silhouette(const cv::Mat& bgr, const PlateModel& plate,
-                         const SegmentOptions& options) {
+                         const SegmentOptions& options, cv::Mat* shadow_like) {
   if (bgr.size() != plate.mean.size()) {
     throw InputError(fmt::format("frame of {}x{} against plates of {}x{}", bgr.cols, bgr.rows,
                                  plate.mean.cols, plate.mean.rows));
@@ -128,6 +128,7 @@ cv::Mat plate_silhouette(const cv::Mat& bgr, const PlateModel& plate,
   cv::Mat background(bgr.size(), CV_32FC3);
   cv::Mat sure_fg(bgr.size(), CV_8U), sure_bg(bgr.size(), CV_8U), midpoint(bgr.size(), CV_8U);
   const float mid = static_cast<float>(0.5 * (kSureBackground + kSureForeground));
+  cv::Mat shade_only = cv::Mat::zeros(bgr.size(), CV_8U);
   for (int r = 0; r < bgr.rows; ++r) {
     const cv::Vec3b* in = bgr.ptr<cv::Vec3b>(r);
     const cv::Vec3f* m = plate.mean.ptr<cv::Vec3f>(r);
@@ -149,11 +150,14 @@ cv::Mat plate_silhouette(const cv::Mat& bgr, const PlateModel& plate,
       const float d = std::max(off_chroma, off_brightness) / sigma;
       f[c] = d >= kSureForeground ? 255 : 0;
       b[c] = d <= kSureBackground ? 255 : 0;
+      // Background only by the shadow rule: clearly darker than the plate.
+      if (b[c] && (1.0f - alpha) * norm_b > kSureForeground * sigma) shade_only.at<std::uint8_t>(r, c) = 255;
       u[c] = d > mid ? 255 : 0;
     }
   }
   cv::Mat mask = matte_outline(bgr, sure_fg, sure_bg, background, midpoint, options.matte_radius);
   clean_up(mask, options);
+  if (shadow_like) *shadow_like = shade_only & (mask == 0);
   return mask;
 }
 

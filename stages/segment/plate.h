@@ -28,8 +28,11 @@ PlateModel learn_plate(const std::vector<cv::Mat>& plates, const std::string& ca
 cv::Vec3d background_gain(const cv::Mat& bgr, const PlateModel& plate);
 
 // One silhouette (CV_8UC1, 0/255) of a BGR frame against the plate model, cleaned up like the
-// chroma key's; the outline decided by the matte alpha against the plate's own colour.
+// chroma key's; the outline decided by the matte alpha against the plate's own colour. With
+// `shadow_like`, also the background pixels that are so only by the shadow rule (clearly darker
+// than the plate, of its chromaticity): a shadow, or dark clothes over a neutral background,
+// which the other cameras can tell apart (ConsistencyCheck::recover).
 cv::Mat plate_silhouette(const cv::Mat& bgr, const PlateModel& plate,
-                         const SegmentOptions& options);
+                         const SegmentOptions& options, cv::Mat* shadow_like = nullptr);
 
 }  // namespace fourd::segment

@@ -214,7 +214,7 @@ void run_segment(const Session& session, const StageArgs& args) {
   tbb::parallel_for(std::size_t{0}, items.size(), [&](std::size_t i) {
     const Item& item = items[i];
     const std::string& take = capture.takes[item.take].name;
-    std::vector<cv::Mat> masks(nc);
+    std::vector<cv::Mat> masks(nc), doubtful(nc);
     for (std::size_t c = 0; c < nc; ++c) {
       const fs::path path = silhouette_path(take, c, item.frame);
       cv::Mat& mask = masks[c];
@@ -226,10 +226,22 @@ void run_segment(const Session& session, const StageArgs& args) {
                                   item.frame);
       } else {
         const cv::Mat image = read_capture_image(session, cameras[c], take, item.frame);
-        mask = choice.method == "plate" ? plate_silhouette(image, plates[c], options)
-                                        : key_silhouette(image, backdrops[c], keys[c], options);
+        mask = choice.method == "plate"
+                   ? plate_silhouette(image, plates[c], options, &doubtful[c])
+                   : key_silhouette(image, backdrops[c], keys[c], options);
       }
-      if (!args.finish) write_image_atomic(path, mask, {cv::IMWRITE_PNG_COMPRESSION, 1});
+    }
+    // Plate: what one camera took for shadow, others may see as the performer.
+    if (!args.finish && choice.method == "plate") {
+      consistency.recover(masks, doubtful);
+      for (cv::Mat& mask : masks) clean_up(mask, options);
+    }
+    for (std::size_t c = 0; c < nc; ++c) {
+      const cv::Mat& mask = masks[c];
+      if (!args.finish) {
+        write_image_atomic(silhouette_path(take, c, item.frame), mask,
+                           {cv::IMWRITE_PNG_COMPRESSION, 1});
+      }
       fractions[i * nc + c] = cv::countNonZero(mask) / static_cast<double>(mask.total());
     }
     const std::vector<double> e = consistency.explained(masks);

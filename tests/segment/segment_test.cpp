@@ -265,6 +265,26 @@ TEST_F(SegmentStage, ConsistentSilhouettesAreExplainedByTheOtherCameras) {
   }
 }
 
+TEST_F(SegmentStage, OtherCamerasRecoverWhatOneTookForShadow) {
+  ConsistencyCheck check(cameras_);
+  std::vector<cv::Mat> silhouettes, doubtful;
+  for (const Camera& cam : cameras_) {
+    silhouettes.push_back(cylinder_silhouette(cam));
+    doubtful.push_back(cv::Mat::zeros(kH, kW, CV_8U));
+  }
+  const cv::Mat truth = silhouettes[1].clone();
+  // Camera 1 took the lower half of the performer for a shadow; and a shadow only it doubts.
+  cv::Mat lower = cv::Mat::zeros(kH, kW, CV_8U);
+  lower(cv::Rect(0, kH / 2, kW, kH / 2)).setTo(255);
+  doubtful[1] = truth & lower;
+  silhouettes[1].setTo(0, lower);
+  cv::rectangle(doubtful[1], cv::Rect(2, kH - 12, 30, 10), 255, cv::FILLED);
+  ASSERT_LT(iou(silhouettes[1], truth), 0.8);
+  check.recover(silhouettes, doubtful);
+  EXPECT_GT(iou(silhouettes[1], truth), 0.97);
+  EXPECT_EQ(cv::countNonZero(silhouettes[1](cv::Rect(2, kH - 12, 30, 10))), 0);
+}
+
 TEST_F(SegmentStage, WarnsAboutAnEmptyAndAnInconsistentMaskNamingCameraAndFrame) {
   cv::Mat bad = cylinder_silhouette(cameras_[2]);
   cv::rectangle(bad, cv::Rect(5, 5, 30, 30), 255, cv::FILLED);
