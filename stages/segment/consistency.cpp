@@ -115,6 +115,20 @@ ConsistencyCheck::ConsistencyCheck(const std::vector<Camera>& cameras) : cameras
   usable_ = !centres_.empty();
 }
 
+cv::Mat ConsistencyCheck::splat(std::size_t c, const std::vector<std::uint8_t>& kept,
+                                float scale) const {
+  const std::size_t n = cameras_.size();
+  const int width = cameras_[c].intrinsics.width;
+  cv::Mat covered = cv::Mat::zeros(cameras_[c].intrinsics.height, width, CV_8U);
+  for (std::size_t v = 0; v < centres_.size(); ++v) {
+    const std::int32_t px = pixel_[v * n + c];
+    if (!kept[v] || px < 0) continue;
+    cv::circle(covered, cv::Point(px % width, px / width),
+               static_cast<int>(std::ceil(scale * radius_px_[v * n + c])), 255, cv::FILLED);
+  }
+  return covered;
+}
+
 std::vector<double> ConsistencyCheck::explained(const std::vector<cv::Mat>& silhouettes) const {
   const std::size_t n = cameras_.size();
   std::vector<double> out(n, -1.0);
@@ -139,14 +153,7 @@ std::vector<double> ConsistencyCheck::explained(const std::vector<cv::Mat>& silh
   });
   tbb::parallel_for(std::size_t{0}, n, [&](std::size_t c) {
     if (area[c] == 0) return;
-    const int width = cameras_[c].intrinsics.width;
-    cv::Mat covered = cv::Mat::zeros(silhouettes[c].size(), CV_8U);
-    for (std::size_t v = 0; v < centres_.size(); ++v) {
-      const std::int32_t px = pixel_[v * n + c];
-      if (!kept[v] || px < 0) continue;
-      cv::circle(covered, cv::Point(px % width, px / width),
-                 static_cast<int>(std::ceil(radius_px_[v * n + c])), 255, cv::FILLED);
-    }
+    const cv::Mat covered = splat(c, kept, 1.0f);
     out[c] = cv::countNonZero(covered & (silhouettes[c] != 0)) / static_cast<double>(area[c]);
   });
   return out;
@@ -176,17 +183,8 @@ void ConsistencyCheck::recover(std::vector<cv::Mat>& silhouettes,
     kept[v] = confirming >= kMinConfirming;
   });
   tbb::parallel_for(std::size_t{0}, n, [&](std::size_t c) {
-    const int width = cameras_[c].intrinsics.width;
-    cv::Mat covered = cv::Mat::zeros(silhouettes[c].size(), CV_8U);
-    for (std::size_t v = 0; v < centres_.size(); ++v) {
-      const std::int32_t px = pixel_[v * n + c];
-      if (!kept[v] || px < 0) continue;
-      // The voxel's inscribed sphere: half its edge, not its half-diagonal.
-      cv::circle(covered, cv::Point(px % width, px / width),
-                 static_cast<int>(std::ceil(radius_px_[v * n + c] / std::sqrt(3.0f))), 255,
-                 cv::FILLED);
-    }
-    silhouettes[c] |= covered & doubtful[c];
+    // The voxels' inscribed spheres: half their edge, not their half-diagonal.
+    silhouettes[c] |= splat(c, kept, 1.0f / std::sqrt(3.0f)) & doubtful[c];
   });
 }
 

@@ -36,6 +36,9 @@ class ConsistencyCheck {
   bool usable() const { return usable_; }
 
  private:
+  // Camera c's image of the `kept` voxels, each a disc of `scale` times its bounding sphere's.
+  cv::Mat splat(std::size_t c, const std::vector<std::uint8_t>& kept, float scale) const;
+
   const std::vector<Camera>& cameras_;
   std::vector<Eigen::Vector3d> centres_;     // voxel centres seen by enough cameras
   std::vector<std::int32_t> pixel_;          // [voxel * cameras + camera]: pixel index or -1
