@@ -161,7 +161,7 @@ const std::vector<StageSpec>& stage_table() {
   // capture. Validate reads every stage's outputs plus the ground truth, and plays the
   // session's control scripts (play/) on the assets.
   static const std::vector<StageSpec> table = {
-      {.name = "synth", .outputs = {"capture", "calibration", "ground_truth"}},
+      {.name = "synth", .outputs = {"capture", "calibration", "ground_truth", kPlatesFolder}},
       {.name = "segment",
        .inputs = {"capture", "calibration", kPlatesFolder, kMasksFolder},
        .outputs = {"segment"},

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <cctype>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -99,10 +100,9 @@ float value_noise(float x, float y, std::uint64_t salt) {
   return (a + (b - a) * tx) + ((c + (d - c) * tx) - (a + (b - a) * tx)) * ty;
 }
 
-// Chroma-green studio floor (BGR albedo), as volumetric-capture stages paint their floors, with
-// mottling at several scales; the performer's shadow falls on it. Octaves finer
-// than the pixel footprint fade out, which keeps the far floor from aliasing.
-Eigen::Vector3f floor_albedo(double x, double y, float footprint_m) {
+// Mottling of a painted surface at several scales (a factor near 1). Octaves finer than the
+// pixel footprint fade out, which keeps the far floor from aliasing.
+float mottling(double x, double y, float footprint_m) {
   struct Octave {
     float wavelength, amplitude;
   };
@@ -120,17 +120,200 @@ Eigen::Vector3f floor_albedo(double x, double y, float footprint_m) {
     }
     ++salt;
   }
-  const Eigen::Vector3f base(70.f / 255, 175.f / 255, 60.f / 255);  // B, G, R
-  return base * brightness;
+  return brightness;
 }
 
-// Chroma-green backdrop (BGR, already lit by its own even screen lights) with a low-frequency
+// Chroma studio floor (BGR albedo `paint`), as volumetric-capture stages paint their floors,
+// mottled; the performer's shadow falls on it.
+Eigen::Vector3f floor_albedo(const Eigen::Vector3f& paint, double x, double y, float footprint_m) {
+  return paint * mottling(x, y, footprint_m);
+}
+
+// Chroma backdrop (BGR `paint`, already lit by its own even screen lights) with a low-frequency
 // brightness variation of relative amplitude `variation`.
-Eigen::Vector3f backdrop_color(double azimuth, double z, double variation) {
+Eigen::Vector3f backdrop_color(const Eigen::Vector3f& paint, double azimuth, double z,
+                               double variation) {
   const double s = 0.45 * std::sin(2 * azimuth + 0.7) +
                    0.35 * std::sin(3 * azimuth - 1.1 + 0.8 * z) + 0.2 * std::cos(1.7 * z + 0.4);
-  const Eigen::Vector3f base(60.f / 255, 170.f / 255, 40.f / 255);  // B, G, R
-  return base * static_cast<float>(0.92 * (1.0 + variation * s));
+  return paint * static_cast<float>(0.92 * (1.0 + variation * s));
+}
+
+// Screen and floor paints (BGR in [0, 1]) of the chroma studios. Green: the studio of the
+// default sample. Blue: the chroma blue of blue-screen paint (sRGB about 25, 70, 185), the floor
+// a little lighter and less saturated as painted floors are.
+struct ScreenPaint {
+  Eigen::Vector3f wall, floor;
+};
+ScreenPaint screen_paint(const std::string& backdrop) {
+  if (backdrop == "green") {
+    return {{60.f / 255, 170.f / 255, 40.f / 255}, {70.f / 255, 175.f / 255, 60.f / 255}};
+  }
+  if (backdrop == "blue") {
+    return {{185.f / 255, 70.f / 255, 25.f / 255}, {180.f / 255, 82.f / 255, 38.f / 255}};
+  }
+  // "#RRGGBB", checked by StudioOptions::check(): screen and floor of that paint.
+  const unsigned long rgb = std::stoul(backdrop.substr(1), nullptr, 16);
+  const Eigen::Vector3f paint((rgb & 0xff) / 255.f, ((rgb >> 8) & 0xff) / 255.f,
+                              ((rgb >> 16) & 0xff) / 255.f);
+  return {paint, paint};
+}
+
+// ---------------------------------------------------------------------------------------------
+// The furnished room (backdrop "room"): painted walls with a skirting board and posters, a tiled
+// floor with a rug, and furniture (cupboards, shelves, boxes) along the walls, some of it
+// coloured like the performer's clothes and skin, so that no colour tells the performer apart.
+
+Eigen::Vector3f bgr(int r, int g, int b) { return Eigen::Vector3f(b / 255.f, g / 255.f, r / 255.f); }
+
+// One piece of furniture: a box facing the volume's centre, at `azimuth` [rad], from `inner` to
+// `outer` [m] from the centre, `half_width` [m] either side, from the floor to `height` [m].
+struct Furniture {
+  float azimuth, inner, outer, half_width, height;
+  Eigen::Vector3f color;
+  int style;  // 0 plain, 1 shelves with books, 2 drawers
+};
+
+// Furniture stands within kFurnitureDepth of the wall: cameras stand nearer the centre (the
+// default rig at 3.5 m, the wall at 4.5 m), so no piece ever hides the performer from a camera.
+constexpr float kFurnitureDepth = 0.62f;
+
+std::vector<Furniture> room_furniture(float wall) {
+  struct Piece {
+    float azimuth_deg, depth, width, height;
+    Eigen::Vector3f color;
+    int style;
+  };
+  // Colours: wood, white, and some of the clothing palette (red, denim, skin, dark grey).
+  const std::vector<Piece> pieces = {
+      {8, 0.45f, 1.3f, 0.85f, bgr(200, 40, 40), 0},    {40, 0.35f, 0.9f, 1.9f, bgr(120, 85, 55), 1},
+      {75, 0.55f, 1.1f, 0.75f, bgr(45, 65, 115), 2},   {110, 0.4f, 0.7f, 1.4f, bgr(230, 228, 222), 1},
+      {148, 0.6f, 1.4f, 0.5f, bgr(225, 180, 145), 0},  {185, 0.35f, 1.0f, 2.1f, bgr(95, 70, 50), 1},
+      {222, 0.5f, 0.8f, 1.1f, bgr(32, 32, 36), 2},     {255, 0.45f, 1.2f, 0.9f, bgr(140, 140, 148), 0},
+      {290, 0.3f, 0.9f, 1.7f, bgr(185, 158, 112), 1},  {322, 0.55f, 0.9f, 0.6f, bgr(120, 50, 150), 0},
+      {345, 0.3f, 0.5f, 1.2f, bgr(40, 80, 190), 2},
+  };
+  std::vector<Furniture> out;
+  for (const Piece& p : pieces) {
+    const float outer = wall - 0.02f;
+    out.push_back({p.azimuth_deg * std::numbers::pi_v<float> / 180, outer - std::min(p.depth, kFurnitureDepth),
+                   outer, 0.5f * p.width, p.height, p.color, p.style});
+  }
+  return out;
+}
+
+// Ray (o, d) against a piece of furniture: the entry distance and the outward face normal.
+bool hit_furniture(const Furniture& f, const Eigen::Vector3d& o, const Eigen::Vector3d& d,
+                   double* t_hit, Eigen::Vector3d* normal) {
+  // The box's frame: x towards the wall, y along it, z up.
+  const double c = std::cos(f.azimuth), s = std::sin(f.azimuth);
+  const Eigen::Vector3d lo(f.inner, -f.half_width, 0), hi(f.outer, f.half_width, f.height);
+  const Eigen::Vector3d lo_o(c * o.x() + s * o.y(), -s * o.x() + c * o.y(), o.z());
+  const Eigen::Vector3d ld(c * d.x() + s * d.y(), -s * d.x() + c * d.y(), d.z());
+  double t0 = 1e-6, t1 = std::numeric_limits<double>::infinity();
+  int axis = -1;
+  double sign = 0;
+  for (int a = 0; a < 3; ++a) {
+    if (std::abs(ld[a]) < 1e-12) {
+      if (lo_o[a] < lo[a] || lo_o[a] > hi[a]) return false;
+      continue;
+    }
+    double near = (lo[a] - lo_o[a]) / ld[a], far = (hi[a] - lo_o[a]) / ld[a];
+    double face = -1;
+    if (near > far) {
+      std::swap(near, far);
+      face = 1;
+    }
+    if (near > t0) {
+      t0 = near;
+      axis = a;
+      sign = face;
+    }
+    t1 = std::min(t1, far);
+    if (t0 > t1) return false;
+  }
+  if (axis < 0) return false;  // the ray starts inside the box
+  Eigen::Vector3d n_local = Eigen::Vector3d::Zero();
+  n_local[axis] = sign;
+  *normal = Eigen::Vector3d(c * n_local.x() - s * n_local.y(), s * n_local.x() + c * n_local.y(),
+                            n_local.z());
+  *t_hit = t0;
+  return true;
+}
+
+// Albedo of a piece of furniture at the world point p.
+Eigen::Vector3f furniture_albedo(const Furniture& f, const Eigen::Vector3d& p, float footprint) {
+  const double c = std::cos(f.azimuth), s = std::sin(f.azimuth);
+  const double along = -s * p.x() + c * p.y();  // across its front [m]
+  const float grain = mottling(along * 3.1, p.z() * 3.1, footprint);
+  Eigen::Vector3f color = f.color * grain;
+  if (f.style == 1) {  // shelves every 0.38 m, books of many colours between them
+    const double shelf = std::fmod(p.z(), 0.38);
+    if (shelf < 0.03) return f.color * 0.7f * grain;
+    const double book = std::floor((along + 2.0) / 0.045);
+    const std::uint64_t h = hash3(91, static_cast<std::uint64_t>(book + 1000),
+                                  static_cast<std::uint64_t>(p.z() / 0.38));
+    static const std::array<Eigen::Vector3f, 6> books = {
+        bgr(200, 40, 40), bgr(40, 80, 190), bgr(230, 228, 222),
+        bgr(225, 190, 40), bgr(32, 32, 36), bgr(220, 110, 150)};
+    const float top = 0.2f + 0.14f * to_unit(mix64(h));  // book height above the shelf
+    if (shelf < top) return books[h % books.size()] * grain;
+    return f.color * 0.45f;  // the back of the shelf, in its own shade
+  }
+  if (f.style == 2) {  // drawers: dark gaps every 0.25 m and a handle
+    const double drawer = std::fmod(p.z(), 0.25);
+    if (drawer < 0.015) return color * 0.35f;
+    if (drawer > 0.11 && drawer < 0.14 && std::abs(std::fmod(std::abs(along) + 1.0, 0.6) - 0.3) < 0.05) {
+      return bgr(200, 200, 205);
+    }
+  }
+  return color;
+}
+
+// The room's wall (a cylinder around the volume) at azimuth a and height z: painted plaster,
+// a skirting board, wallpaper in some sectors and posters.
+Eigen::Vector3f room_wall_albedo(double a, double z, double wall, float footprint) {
+  const double arc = a * wall;  // distance along the wall [m]
+  if (z < 0.12) return bgr(95, 70, 50) * mottling(arc * 4, z * 4, footprint);
+  // Posters: rectangles of strong colour.
+  struct Poster {
+    float azimuth_deg, width, bottom, top;
+    Eigen::Vector3f color, stripe;
+  };
+  static const std::array<Poster, 5> posters = {{
+      {22, 0.7f, 1.3f, 2.1f, bgr(200, 40, 40), bgr(230, 228, 222)},
+      {130, 0.9f, 1.5f, 2.2f, bgr(40, 80, 190), bgr(225, 190, 40)},
+      {200, 0.6f, 1.2f, 1.9f, bgr(225, 180, 145), bgr(125, 25, 40)},
+      {272, 1.0f, 1.4f, 2.0f, bgr(30, 40, 95), bgr(220, 110, 150)},
+      {335, 0.8f, 1.6f, 2.3f, bgr(120, 170, 220), bgr(40, 38, 42)},
+  }};
+  for (const Poster& p : posters) {
+    double da = a - p.azimuth_deg * std::numbers::pi / 180;
+    da = std::remainder(da, 2 * std::numbers::pi) * wall;
+    if (std::abs(da) < 0.5 * p.width && z > p.bottom && z < p.top) {
+      return (std::fmod(z * 7 + da * 3 + 10, 1.0) < 0.5 ? p.color : p.stripe);
+    }
+  }
+  // Plaster, with wallpaper stripes between 60 and 180 degrees.
+  Eigen::Vector3f paint = bgr(205, 195, 172);
+  const double deg = std::remainder(a, 2 * std::numbers::pi) * 180 / std::numbers::pi;
+  if (deg > 60 && deg < 180 && std::fmod(arc + 100, 0.3) < 0.12) paint = bgr(170, 150, 125);
+  return paint * mottling(arc, z, footprint);
+}
+
+// The room's floor: 0.5 m tiles in two tones with grout, and a striped rug near the centre.
+Eigen::Vector3f room_floor_albedo(double x, double y, float footprint) {
+  const float m = mottling(x, y, footprint);
+  if (x > -1.3 && x < 0.9 && y > -0.8 && y < 1.1) {  // the rug
+    const double band = std::fmod(x * 2.5 + 10, 1.0);
+    if (band < 0.3) return bgr(125, 25, 40) * m;
+    if (band < 0.5) return bgr(185, 158, 112) * m;
+    if (band < 0.8) return bgr(45, 65, 115) * m;
+    return bgr(230, 228, 222) * m;
+  }
+  const double u = std::fmod(x + 100, 0.5), v = std::fmod(y + 100, 0.5);
+  if (u < 0.012 || v < 0.012) return bgr(70, 68, 66) * m;  // grout
+  const bool odd = (static_cast<long>(std::floor(x / 0.5)) + static_cast<long>(std::floor(y / 0.5))) & 1;
+  return (odd ? bgr(150, 135, 120) : bgr(190, 180, 165)) * m;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -139,7 +322,7 @@ Eigen::Vector3f backdrop_color(double azimuth, double z, double variation) {
 // umbra. Eight miss only occluders that clip less than ~2% of the disc between two of them.
 constexpr int kRimSamples = 8;  // one Embree packet
 
-enum class Surface : std::uint8_t { kFloor = 0, kWall = 1, kPerformer = 2 };
+enum class Surface : std::uint8_t { kFloor = 0, kWall = 1, kPerformer = 2, kFurniture = 3 };
 
 struct Shaded {
   Eigen::Vector3f color;  // BGR, linear in [0, ~1]
@@ -194,6 +377,8 @@ bool ray_hits_box(const Eigen::Vector3f& o, const Eigen::Vector3f& inv_d,
 
 struct StudioRenderer::Impl {
   StudioOptions options;
+  ScreenPaint paint;                 // chroma studios
+  std::vector<Furniture> furniture;  // the room
   RTCDevice device = nullptr;
   RTCScene scene = nullptr;
 
@@ -373,9 +558,10 @@ Shaded StudioRenderer::Impl::shade(const Eigen::Vector3d& o, const Eigen::Vector
     }
   }
 
-  // The studio: floor z = 0 inside a vertical cylinder of radius wall_distance (the green
-  // screen, unbounded upwards so every ray ends on it).
+  // The studio: floor z = 0 inside a vertical cylinder of radius wall_distance (the screen or
+  // the room's wall, unbounded upwards so every ray ends on it), and the room's furniture.
   const double radius = options.wall_distance;
+  const bool room = options.room();
   double t_wall = std::numeric_limits<double>::infinity();
   const double a = d.x() * d.x() + d.y() * d.y();
   if (a > 1e-12) {
@@ -394,10 +580,38 @@ Shaded StudioRenderer::Impl::shade(const Eigen::Vector3d& o, const Eigen::Vector
     if (p.x() * p.x() + p.y() * p.y() > radius * radius)
       t_floor = std::numeric_limits<double>::infinity();
   }
+  double t_box = std::numeric_limits<double>::infinity();
+  const Furniture* piece = nullptr;
+  Eigen::Vector3d box_normal;
+  for (const Furniture& f : furniture) {
+    double t;
+    Eigen::Vector3d n;
+    if (hit_furniture(f, o, d, &t, &n) && t < t_box) {
+      t_box = t;
+      piece = &f;
+      box_normal = n;
+    }
+  }
+  // Lit by the key light (with the performer's shadow) and the ambient light.
+  auto lit = [&](const Eigen::Vector3f& albedo, const Eigen::Vector3d& p, const Eigen::Vector3d& n) {
+    const float n_dot_l = n.cast<float>().dot(light);
+    float direct = 0;
+    if (n_dot_l > 0) direct = n_dot_l * visibility((p + 1e-4 * n).cast<float>(), stats);
+    return Eigen::Vector3f(albedo * (ambient + key * direct));
+  };
+  if (piece && t_box < t_floor && t_box < t_wall) {
+    const Eigen::Vector3d p = o + t_box * d;
+    const float footprint = static_cast<float>(t_box * pixel_angle);
+    return {lit(furniture_albedo(*piece, p, footprint), p, box_normal), Surface::kFurniture, t_box};
+  }
   if (t_floor < t_wall) {
     const Eigen::Vector3d p = o + t_floor * d;
     const float footprint = static_cast<float>(t_floor * pixel_angle / std::max(-d.z(), 0.05));
-    const Eigen::Vector3f albedo = floor_albedo(p.x(), p.y(), footprint);
+    if (room) {
+      return {lit(room_floor_albedo(p.x(), p.y(), footprint), p, Eigen::Vector3d::UnitZ()),
+              Surface::kFloor, t_floor};
+    }
+    const Eigen::Vector3f albedo = floor_albedo(paint.floor, p.x(), p.y(), footprint);
     const float n_dot_l = light.z();
     float direct = 0;
     if (n_dot_l > 0) {
@@ -407,17 +621,41 @@ Shaded StudioRenderer::Impl::shade(const Eigen::Vector3d& o, const Eigen::Vector
   }
   if (std::isfinite(t_wall)) {
     const Eigen::Vector3d p = o + t_wall * d;
-    return {backdrop_color(std::atan2(p.y(), p.x()), p.z(), options.backdrop_variation),
+    if (room) {
+      const float footprint = static_cast<float>(t_wall * pixel_angle);
+      const Eigen::Vector3d inward = -Eigen::Vector3d(p.x(), p.y(), 0).normalized();
+      return {lit(room_wall_albedo(std::atan2(p.y(), p.x()), p.z(), radius, footprint), p, inward),
+              Surface::kWall, t_wall};
+    }
+    return {backdrop_color(paint.wall, std::atan2(p.y(), p.x()), p.z(), options.backdrop_variation),
             Surface::kWall, t_wall};
   }
   // Only a camera outside the studio looking away from it gets here: show the screen colour.
-  return {backdrop_color(std::atan2(d.y(), d.x()), o.z(), options.backdrop_variation),
+  return {backdrop_color(paint.wall, std::atan2(d.y(), d.x()), o.z(), options.backdrop_variation),
           Surface::kWall, std::numeric_limits<double>::infinity()};
+}
+
+void StudioOptions::check() const {
+  if (backdrop == "green" || backdrop == "blue" || backdrop == "room") return;
+  const bool hex = backdrop.size() == 7 && backdrop[0] == '#' &&
+                   std::all_of(backdrop.begin() + 1, backdrop.end(),
+                               [](char ch) { return std::isxdigit(static_cast<unsigned char>(ch)); });
+  if (!hex) {
+    throw ConfigError(fmt::format(
+        "backdrop '{}': expected green, blue, room or a colour #RRGGBB", backdrop));
+  }
 }
 
 StudioRenderer::StudioRenderer(const StudioOptions& options) : impl_(std::make_unique<Impl>()) {
   Impl& s = *impl_;
+  options.check();
   s.options = options;
+  if (options.room()) {
+    s.paint = screen_paint("green");  // only seen by a camera outside the room looking away
+    s.furniture = room_furniture(static_cast<float>(options.wall_distance));
+  } else {
+    s.paint = screen_paint(options.backdrop);
+  }
   const double deg = std::numbers::pi / 180.0;
   const double el = options.light_elevation * deg, az = options.light_azimuth * deg;
   s.light = Eigen::Vector3d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el))
@@ -588,7 +826,8 @@ std::uint64_t pixel_key(int x, int y) {
 
 }  // namespace
 
-RenderedView StudioRenderer::render(const Camera& camera, std::uint64_t noise_seed) const {
+RenderedView StudioRenderer::render(const Camera& camera, std::uint64_t noise_seed,
+                                    float gain) const {
   const Impl& s = *impl_;
   const Intrinsics& k = camera.intrinsics;
   if (k.width <= 0 || k.height <= 0 || !(k.fx > 0) || !(k.fy > 0)) {
@@ -659,6 +898,7 @@ RenderedView StudioRenderer::render(const Camera& camera, std::uint64_t noise_se
           c = sum / static_cast<float>(spp);
           ++local.supersampled_pixels;
         }
+        if (gain != 1.0f) c *= gain;
         std::array<float, 3> noise{};
         if (sigma > 0) noise = sensor_noise(noise_seed, key, sigma);
         for (int ch = 0; ch < 3; ++ch) {

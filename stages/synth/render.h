@@ -1,10 +1,11 @@
 #pragma once
 // The virtual studio: a camera rig around the capture volume and an Embree renderer that
-// draws the textured performer over a chroma-green backdrop with a floor and soft shadows,
-// with anti-aliasing, lens distortion and sensor noise.
+// draws the textured performer over a backdrop (a chroma screen and floor, green by default,
+// or a furnished room) with soft shadows, anti-aliasing, lens distortion and sensor noise.
 #include <cstdint>
 #include <memory>
 #include <opencv2/core.hpp>
+#include <string>
 #include <vector>
 
 #include "pipeline/core/camera.h"
@@ -55,6 +56,10 @@ struct StudioOptions {
   double backdrop_variation = 0.08;  // relative low-frequency brightness variation of the screen
   int shadow_samples = 32;           // light samples per shaded point (soft shadows; 1 = hard)
   double light_radius = 4;           // angular radius of the key light [deg] (penumbra width)
+  // What surrounds the volume: "green" or "blue" (a chroma screen and floor of that paint),
+  // "#RRGGBB" (a screen and floor of that colour), or "room" (a furnished room, no screen: synth
+  // also writes plates of the empty room and lets the lights flicker a little).
+  std::string backdrop = "green";
 
   template <class V>
   void visit(V& v) {
@@ -67,7 +72,11 @@ struct StudioOptions {
     v("backdrop_variation", backdrop_variation, "backdrop brightness variation", Range{0, 1});
     v("shadow_samples", shadow_samples, "light samples per point (soft shadows)", Range{1, 64});
     v("light_radius", light_radius, "angular radius of the key light [deg]", Range{0, 20});
+    v("backdrop", backdrop,
+      "green | blue | #RRGGBB (chroma screen and floor) | room (furnished room, with plates/)");
   }
+  void check() const;
+  bool room() const { return backdrop == "room"; }
 };
 
 // Work counts of one render, for logs and benchmarks.
@@ -98,8 +107,9 @@ class StudioRenderer {
   // Uses mesh.normals for smooth shading when present, else computes vertex normals.
   // Throws InputError when the mesh or the texture is unusable.
   void set_performer(const Mesh& mesh, const cv::Mat& texture);
-  // `noise_seed` makes the sensor noise deterministic.
-  RenderedView render(const Camera& camera, std::uint64_t noise_seed) const;
+  // `noise_seed` makes the sensor noise deterministic; `gain` scales all light (flicker).
+  // Before set_performer() it renders the empty studio (background plates).
+  RenderedView render(const Camera& camera, std::uint64_t noise_seed, float gain = 1.0f) const;
 
  private:
   struct Impl;

@@ -21,6 +21,12 @@ namespace {
 // Written into capture/ so that a rerun never overwrites a real studio capture.
 constexpr const char* kSyntheticMarker = ".synthetic";
 
+// The room studio (backdrop "room"): plates of the empty room per camera, each with its own
+// sensor noise, as a studio shoots a few frames of the empty set before a take; and the lights'
+// flicker, a global gain per frame uniform within +-kFlicker (mains-powered lights).
+constexpr int kPlates = 3;
+constexpr double kFlicker = 0.03;
+
 std::uint64_t mix_seed(std::uint64_t seed, const std::string& what, int a = 0, int b = 0) {
   std::string key = fmt::format("{}|{}|{}|{}", seed, what, a, b);
   return hash_bytes(key);
@@ -111,15 +117,21 @@ void center_on_volume(MotionClip& clip) {
   for (Pose& p : clip.poses) p.root_position.head<2>() += shift;
 }
 
-// Refuse to overwrite a capture/ that synth did not make.
-void prepare_output_dirs(const Session& session) {
+// Refuse to overwrite a capture/ (or plates/) that synth did not make.
+void prepare_output_dirs(const Session& session, bool plates) {
   fs::path capture = session.capture_dir();
-  if (fs::exists(capture) && !fs::is_empty(capture) && !fs::exists(capture / kSyntheticMarker)) {
+  auto foreign = [](const fs::path& dir) {
+    return fs::exists(dir) && !fs::is_empty(dir) && !fs::exists(dir / kSyntheticMarker);
+  };
+  if (foreign(capture) || (plates && foreign(session.dir("plates")))) {
+    const fs::path which = foreign(capture) ? capture : session.dir("plates");
     throw InputError(fmt::format(
         "{} holds a capture that the synth stage did not make (no {} marker); refusing to "
         "overwrite it. Remove stages.synth from session.yaml to process a real capture.",
-        capture.string(), kSyntheticMarker));
+        which.string(), kSyntheticMarker));
   }
+  // Plates of an earlier synthetic room must not survive into a screen studio's session.
+  if (fs::exists(session.dir("plates") / kSyntheticMarker)) remove_folder(session.dir("plates"));
   // Stale takes of an earlier run must not survive into this one. Each folder goes as a whole
   // (a capture/ emptied half-way by a killed run would have lost its marker, and the rerun
   // would refuse it as a real capture).
@@ -128,6 +140,10 @@ void prepare_output_dirs(const Session& session) {
     ensure_directory(dir);
   }
   write_file_atomic(capture / kSyntheticMarker, "made by fourd-synth\n");
+  if (plates) {
+    ensure_directory(session.dir("plates"));
+    write_file_atomic(session.dir("plates") / kSyntheticMarker, "made by fourd-synth\n");
+  }
 }
 
 }  // namespace
@@ -175,7 +191,7 @@ void run_synth(const Session& session, const StageArgs& args) {
     require_free_space(session.root(), frames * (4 * pixels + mesh_bytes),
                        fmt::format("synth's {} frames of {} cameras", frames, rig.size()));
   }
-  prepare_output_dirs(session);
+  prepare_output_dirs(session, options.studio.room());
 
   // Calibration as the studio would deliver it, and the truth for validation.
   write_colmap_model(session.calibration_dir(),
@@ -192,6 +208,18 @@ void run_synth(const Session& session, const StageArgs& args) {
   }
 
   StudioRenderer renderer(options.studio);
+  if (options.studio.room()) {
+    tbb::parallel_for(std::size_t{0}, rig.size(), [&](std::size_t c) {
+      for (int i = 0; i < kPlates; ++i) {
+        const RenderedView view =
+            renderer.render(rig[c], mix_seed(options.seed, "plate", static_cast<int>(c), i));
+        write_image_atomic(session.dir("plates") / rig[c].name / (frame_name(i) + ".png"),
+                           view.image);
+      }
+    });
+    log::info("wrote {} plates of the empty room per camera to {}", kPlates,
+              session.dir("plates").string());
+  }
   std::size_t total_frames = 0;
   for (const MotionSpec& spec : options.takes) total_frames += static_cast<std::size_t>(spec.frames);
   log::Progress progress("rendering", total_frames);
@@ -206,10 +234,15 @@ void run_synth(const Session& session, const StageArgs& args) {
       gt_mesh.triangles = posed.triangles;
       write_mesh(gt / "meshes" / spec.take / (name + ".ply"), gt_mesh);
       renderer.set_performer(posed, character.texture);
+      float gain = 1.0f;
+      if (options.studio.room()) {
+        const std::uint64_t h = mix_seed(options.seed, "flicker|" + spec.take, f);
+        gain = static_cast<float>(1.0 + kFlicker * (2.0 * (h >> 11) * 0x1.0p-53 - 1.0));
+      }
       tbb::parallel_for(std::size_t{0}, rig.size(), [&](std::size_t c) {
         const Camera& cam = rig[c];
         RenderedView view =
-            renderer.render(cam, mix_seed(options.seed, spec.take, static_cast<int>(c), f));
+            renderer.render(cam, mix_seed(options.seed, spec.take, static_cast<int>(c), f), gain);
         write_image_atomic(session.capture_image(spec.take, cam.name, f), view.image);
         write_image_atomic(gt / "silhouettes" / spec.take / cam.name / (name + ".png"),
                            view.silhouette);

@@ -19,6 +19,7 @@
 #include <filesystem>
 #include <functional>
 #include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
 #include <string>
 #include <utility>
 #include <vector>
@@ -128,6 +129,10 @@ StageReport validate_paths(const ValidationContext& context);
 
 // segment/ silhouettes against ground_truth/silhouettes/: segment.iou_mean (validate_segment.cpp).
 StageReport validate_segment(const ValidationContext& context);
+// Intersection over union of the foreground (> 127) of two silhouettes of one size, 1 when both
+// are empty: the per camera and frame value segment.iou_mean averages. InputError when the sizes
+// differ.
+double silhouette_iou(const cv::Mat& a, const cv::Mat& b);
 
 // reconstruct/ meshes (and visual_hull/) against ground_truth/meshes/: accuracy, completeness,
 // F-score, seconds per frame, per take, plus error heat-maps (validate_reconstruct.cpp).

@@ -103,7 +103,7 @@ TEST(StageTable, PipelineOrderAndDataFlow) {
   EXPECT_EQ(names, (std::vector<std::string>{"synth", "segment", "reconstruct", "align", "timewarp", "motionspace",
                                              "texture", "graph", "validate"}));
   EXPECT_EQ(table.front().outputs,
-            (std::vector<std::string>{"capture", "calibration", "ground_truth"}));
+            (std::vector<std::string>{"capture", "calibration", "ground_truth", "plates"}));
   EXPECT_TRUE(table.front().inputs.empty());
   EXPECT_EQ(table.back().outputs, (std::vector<std::string>{"reports"}));
   // Every folder a stage reads is written by an earlier stage, and no two stages share an

@@ -1,0 +1,49 @@
+#pragma once
+// Cross-camera consistency of one frame's silhouettes. A coarse voxel grid over the volume the
+// cameras share is carved by every camera's silhouette, a voxel kept when at most one of the
+// cameras that see it disagrees (so that one bad camera neither carves nor adds); the hull is
+// then splatted back into each camera, and the fraction of that camera's silhouette it covers is
+// how well the other cameras explain it. A silhouette with foreground the others do not see
+// (a key that took part of the backdrop) is poorly explained.
+//
+// Unlike reconstruct's VisualHull (a fine signed-distance field for the surface), this is a
+// cheap vote on a fixed grid whose projections are computed once per rig.
+#include <opencv2/core.hpp>
+#include <vector>
+
+#include "pipeline/core/camera.h"
+
+namespace fourd::segment {
+
+class ConsistencyCheck {
+ public:
+  // The grid (kGrid^3 voxels) spans the points that most cameras see, around the point their
+  // optical axes pass nearest.
+  explicit ConsistencyCheck(const std::vector<Camera>& cameras);
+
+  // Per camera, the fraction of its silhouette (CV_8UC1, nonzero = foreground) covered by the
+  // hull's projection; -1 for an empty silhouette or when fewer than kMinCameras cameras are
+  // checked (the hull of one or two views explains everything).
+  std::vector<double> explained(const std::vector<cv::Mat>& silhouettes) const;
+
+  // Adds to each silhouette the pixels of `doubtful[c]` (CV_8UC1) that the visual hull of all
+  // silhouettes and doubtful pixels explains with voxels that at least kMinConfirming cameras
+  // see as surely foreground (their silhouette without doubt): the performer, where one camera
+  // took it for background and others did not. A shadow on the floor is doubtful in every camera
+  // and stays background. Then cleaned up again by the caller.
+  void recover(std::vector<cv::Mat>& silhouettes, const std::vector<cv::Mat>& doubtful) const;
+
+  bool usable() const { return usable_; }
+
+ private:
+  // Camera c's image of the `kept` voxels, each a disc of `scale` times its bounding sphere's.
+  cv::Mat splat(std::size_t c, const std::vector<std::uint8_t>& kept, float scale) const;
+
+  const std::vector<Camera>& cameras_;
+  std::vector<Eigen::Vector3d> centres_;     // voxel centres seen by enough cameras
+  std::vector<std::int32_t> pixel_;          // [voxel * cameras + camera]: pixel index or -1
+  std::vector<float> radius_px_;             // [voxel * cameras + camera]: projected radius
+  bool usable_ = false;
+};
+
+}  // namespace fourd::segment

@@ -1,0 +1,38 @@
+#pragma once
+// Plate difference: a per-camera model of the empty studio from its background plates, and the
+// silhouette of a frame against it. The model tolerates the light changing between the plates
+// and the frame (a gain per colour channel, estimated on the pixels that are surely background)
+// and the performer's shadows: a pixel darker than the plate by a factor down to
+// kShadowDarkest but of the plate's chromaticity is background.
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "stages/segment/segment.h"
+
+namespace fourd::segment {
+
+struct PlateModel {
+  cv::Mat mean;        // CV_32FC3 BGR, the mean of the plates [8-bit levels]
+  double sigma = 0;    // sensor noise of one image, std-dev per channel [8-bit levels]
+  int plates = 0;      // images the mean is of
+};
+
+// The model of one camera from its plates (BGR, all of one size). With one plate the noise is
+// estimated from the plate's fine detail. Throws InputError naming `camera` when there is no
+// plate or their sizes differ.
+PlateModel learn_plate(const std::vector<cv::Mat>& plates, const std::string& camera);
+
+// The gain per channel (B, G, R) that maps the plate onto the frame's background, estimated on
+// pixels whose ratio to the plate is near the median's (the performer and its shadows are not).
+cv::Vec3d background_gain(const cv::Mat& bgr, const PlateModel& plate);
+
+// One silhouette (CV_8UC1, 0/255) of a BGR frame against the plate model, cleaned up like the
+// chroma key's; the outline decided by the matte alpha against the plate's own colour. With
+// `shadow_like`, also the background pixels that are so only by the shadow rule (clearly darker
+// than the plate, of its chromaticity): a shadow, or dark clothes over a neutral background,
+// which the other cameras can tell apart (ConsistencyCheck::recover).
+cv::Mat plate_silhouette(const cv::Mat& bgr, const PlateModel& plate,
+                         const SegmentOptions& options, cv::Mat* shadow_like = nullptr);
+
+}  // namespace fourd::segment

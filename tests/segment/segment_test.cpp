@@ -1,0 +1,325 @@
+// Segmentation on small synthetic images: the learned chroma key of screens of any colour, plate
+// difference under a gain change and a shadow, supplied masks, the method auto picks, and the
+// cross-camera consistency warning of the stage.
+#include "stages/segment/segment.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgproc.hpp>
+#include <random>
+
+#include "pipeline/core/colmap_model.h"
+#include "pipeline/core/error.h"
+#include "pipeline/core/files.h"
+#include "pipeline/core/image_io.h"
+#include "pipeline/core/session.h"
+#include "stages/segment/consistency.h"
+#include "stages/segment/plate.h"
+#include "stages/synth/render.h"
+#include "stages/validate/validate.h"
+#include "tests/scratch_dir.h"
+
+namespace fourd::segment {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr int kW = 160, kH = 120;
+
+// The performer of the synthetic frames: a rectangle of several clothing colours.
+const cv::Rect kPerformer(60, 20, 40, 80);
+
+cv::Mat performer_mask() {
+  cv::Mat m = cv::Mat::zeros(kH, kW, CV_8U);
+  m(kPerformer).setTo(255);
+  return m;
+}
+
+void add_noise(cv::Mat& bgr, std::mt19937& rng, double sigma) {
+  cv::Mat noise(bgr.size(), CV_32FC3);
+  std::normal_distribution<float> n(0.f, static_cast<float>(sigma));
+  for (int r = 0; r < noise.rows; ++r) {
+    for (int c = 0; c < noise.cols; ++c) noise.at<cv::Vec3f>(r, c) = {n(rng), n(rng), n(rng)};
+  }
+  cv::Mat f;
+  bgr.convertTo(f, CV_32FC3);
+  f += noise;
+  f.convertTo(bgr, CV_8UC3);
+}
+
+// A frame of a chroma screen of colour `rgb` (brighter at the top, a shadow on the floor), with
+// the performer in skin, red, grey and yellow.
+cv::Mat chroma_frame(const cv::Vec3b& rgb, std::mt19937& rng) {
+  cv::Mat bgr(kH, kW, CV_8UC3);
+  for (int r = 0; r < kH; ++r) {
+    const double shade = (r > 95 && r < 110) ? 0.45 : 1.0 - 0.15 * r / kH;
+    bgr.row(r).setTo(cv::Scalar(rgb[2] * shade, rgb[1] * shade, rgb[0] * shade));
+  }
+  const cv::Rect p = kPerformer;
+  bgr(cv::Rect(p.x, p.y, p.width, 15)).setTo(cv::Scalar(145, 180, 225));        // skin
+  bgr(cv::Rect(p.x, p.y + 15, p.width, 30)).setTo(cv::Scalar(40, 40, 200));     // red shirt
+  bgr(cv::Rect(p.x, p.y + 45, p.width / 2, 35)).setTo(cv::Scalar(90, 95, 110)); // warm grey
+  bgr(cv::Rect(p.x + p.width / 2, p.y + 45, p.width / 2, 35)).setTo(cv::Scalar(40, 190, 225));
+  add_noise(bgr, rng, 2.0);
+  return bgr;
+}
+
+double iou(const cv::Mat& a, const cv::Mat& b) { return fourd::validate::silhouette_iou(a, b); }
+
+double hue_distance(double a, double b) { return std::abs(std::remainder(a - b, 360.0)); }
+
+void expect_chroma_studio_keyed(const cv::Vec3b& rgb, double expected_hue) {
+  std::mt19937 rng(5);
+  std::vector<cv::Mat> frames;
+  for (int i = 0; i < 3; ++i) frames.push_back(chroma_frame(rgb, rng));
+  const Backdrop b = learn_backdrop(frames, "cam00");
+  EXPECT_LT(hue_distance(b.hue_deg, expected_hue), 8.0) << b.hue_deg;
+  EXPECT_GT(b.fraction, 0.6);
+  EXPECT_NEAR(b.rgb[0], rgb[0] * 0.93, 12);
+  std::vector<cv::Mat> maps;
+  for (const cv::Mat& f : frames) maps.push_back(keyness(f, b, 16));
+  const KeyModel key = learn_key(maps);
+  const SegmentOptions options;
+  for (const cv::Mat& f : frames) {
+    EXPECT_GT(iou(key_silhouette(f, b, key, options), performer_mask()), 0.98);
+  }
+}
+
+TEST(SegmentChroma, LearnsABlueScreen) { expect_chroma_studio_keyed({25, 70, 185}, 225); }
+
+TEST(SegmentChroma, LearnsAMagentaScreen) { expect_chroma_studio_keyed({200, 40, 190}, 302); }
+
+TEST(SegmentChroma, LearnsAGreenScreen) { expect_chroma_studio_keyed({40, 170, 60}, 128); }
+
+TEST(SegmentChroma, PureGreenIsTheClassicKey) {
+  // Along pure green the generalised keyness is (G - max(R, B)) / (G + offset).
+  Backdrop green;
+  green.direction = chroma_direction(120);
+  cv::Mat bgr(1, 5, CV_8UC3);
+  const std::vector<cv::Vec3b> colours = {{60, 170, 40}, {40, 40, 200}, {0, 0, 0}, {200, 100, 30},
+                                          {255, 255, 255}};
+  for (int i = 0; i < 5; ++i) bgr.at<cv::Vec3b>(0, i) = colours[i];
+  const cv::Mat k = keyness(bgr, green, 16);
+  for (int i = 0; i < 5; ++i) {
+    const float b = colours[i][0], g = colours[i][1], r = colours[i][2];
+    EXPECT_NEAR(k.at<float>(0, i), (g - std::max(r, b)) / (g + 16), 1e-4) << i;
+  }
+}
+
+TEST(SegmentChroma, AGreyStudioHasNoBackdropColour) {
+  std::mt19937 rng(1);
+  std::vector<cv::Mat> frames = {chroma_frame({128, 128, 128}, rng)};
+  try {
+    learn_backdrop(frames, "cam03");
+    FAIL() << "a grey studio was keyed";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("cam03"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("plates"), std::string::npos) << e.what();
+  }
+}
+
+// A cluttered static background: colour blocks and stripes, some of the performer's colours.
+cv::Mat room(std::mt19937& rng) {
+  cv::Mat bgr(kH, kW, CV_8UC3, cv::Scalar(150, 170, 190));
+  for (int x = 0; x + 5 <= kW; x += 12) bgr(cv::Rect(x, 0, 5, kH / 2)).setTo(cv::Scalar(120, 130, 150));
+  bgr(cv::Rect(10, 40, 50, 50)).setTo(cv::Scalar(40, 40, 200));    // red cupboard
+  bgr(cv::Rect(110, 30, 40, 60)).setTo(cv::Scalar(115, 65, 45));   // denim-blue shelf
+  for (int x = 0; x < kW; x += 20) {                               // tiled floor
+    bgr(cv::Rect(x, 90, 10, 30)).setTo(cv::Scalar(100, 120, 140));
+  }
+  add_noise(bgr, rng, 2.0);
+  return bgr;
+}
+
+TEST(SegmentPlate, ToleratesAGainChangeAndAShadow) {
+  std::mt19937 rng(3);
+  cv::Mat empty = room(rng);
+  std::vector<cv::Mat> plates;
+  for (int i = 0; i < 3; ++i) {
+    cv::Mat p = empty.clone();
+    add_noise(p, rng, 2.0);
+    plates.push_back(p);
+  }
+  const PlateModel model = learn_plate(plates, "cam00");
+  EXPECT_NEAR(model.sigma, 2.0, 0.4);  // the noise that differs between the plates
+  // The frame: 4% more light, the performer's shadow on the floor, the performer.
+  cv::Mat frame;
+  empty.convertTo(frame, CV_8UC3, 1.04);
+  const cv::Rect shadow(100, 95, 50, 20);
+  cv::Mat shadowed;
+  frame(shadow).convertTo(shadowed, CV_8UC3, 0.42);
+  shadowed.copyTo(frame(shadow));
+  const cv::Rect p = kPerformer;
+  frame(cv::Rect(p.x, p.y, p.width, 40)).setTo(cv::Scalar(60, 60, 180));  // red, near the cupboard's
+  frame(cv::Rect(p.x, p.y + 40, p.width, 40)).setTo(cv::Scalar(90, 90, 95));
+  add_noise(frame, rng, 2.0);
+  const cv::Vec3d gain = background_gain(frame, model);
+  for (int ch = 0; ch < 3; ++ch) EXPECT_NEAR(gain[ch], 1.04, 0.01);
+  const cv::Mat mask = plate_silhouette(frame, model, SegmentOptions{});
+  EXPECT_GT(iou(mask, performer_mask()), 0.97);
+  EXPECT_LT(cv::countNonZero(mask(shadow)), shadow.area() / 100) << "the shadow is foreground";
+}
+
+TEST(SegmentMasks, AWrongSizeIsAnErrorNamingFileCameraAndFrame) {
+  const fs::path dir = test::scratch_dir("segment_masks_size");
+  const fs::path path = dir / "000007.png";
+  write_image_atomic(path, cv::Mat::zeros(50, 60, CV_8U));
+  try {
+    read_supplied_mask(path, "cam05", kW, kH, 7);
+    FAIL() << "a mask of the wrong size was accepted";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find(path.string()), std::string::npos) << what;
+    EXPECT_NE(what.find("cam05"), std::string::npos) << what;
+    EXPECT_NE(what.find("frame 7"), std::string::npos) << what;
+    EXPECT_NE(what.find("60x50"), std::string::npos) << what;
+  }
+  EXPECT_THROW(read_supplied_mask(dir / "missing.png", "cam05", kW, kH, 8), InputError);
+  cv::Mat grey(kH, kW, CV_8U, cv::Scalar(0));
+  grey(kPerformer).setTo(200);
+  write_image_atomic(path, grey);
+  EXPECT_DOUBLE_EQ(iou(read_supplied_mask(path, "cam05", kW, kH, 7), performer_mask()), 1.0);
+}
+
+TEST(SegmentMethod, AutoPrefersPlatesThenMasksThenChroma) {
+  const fs::path root = test::scratch_dir("segment_auto");
+  EXPECT_EQ(choose_method(root, "auto").method, "chroma");
+  fs::create_directories(root / "masks" / "walk" / "cam00");
+  EXPECT_EQ(choose_method(root, "auto").method, "masks");
+  fs::create_directories(root / "plates");
+  EXPECT_EQ(choose_method(root, "auto").method, "masks") << "an empty plates/ holds no plate";
+  fs::create_directories(root / "plates" / "cam00");
+  const MethodChoice choice = choose_method(root, "auto");
+  EXPECT_EQ(choice.method, "plate");
+  EXPECT_NE(choice.reason.find("plates/"), std::string::npos);
+  EXPECT_EQ(choose_method(root, "chroma").method, "chroma");
+}
+
+// ---- the stage on a small session with supplied masks ---------------------------------------
+
+// Silhouette of a vertical cylinder (radius 0.25 m, 1.7 m tall, at the origin) in `camera`.
+cv::Mat cylinder_silhouette(const Camera& camera) {
+  cv::Mat m = cv::Mat::zeros(camera.intrinsics.height, camera.intrinsics.width, CV_8U);
+  for (int y = 0; y < m.rows; ++y) {
+    for (int x = 0; x < m.cols; ++x) {
+      const Ray ray = camera.unproject({x + 0.5, y + 0.5});
+      const Eigen::Vector2d o = ray.origin.head<2>(), d = ray.direction.head<2>();
+      const double a = d.squaredNorm(), b = o.dot(d), c = o.squaredNorm() - 0.25 * 0.25;
+      const double disc = b * b - a * c;
+      if (a < 1e-12 || disc < 0) continue;
+      const double t = (-b - std::sqrt(disc)) / a;
+      const double z = ray.origin.z() + t * ray.direction.z();
+      if (t > 0 && z > 0 && z < 1.7) m.at<std::uint8_t>(y, x) = 255;
+    }
+  }
+  return m;
+}
+
+class SegmentStage : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    root_ = test::scratch_dir("segment_stage");
+    write_file_atomic(root_ / "session.yaml", "name: t\nfps: 10\n");
+    synth::RigOptions rig;
+    rig.count = 6;
+    rig.width = kW;
+    rig.height_px = kH;
+    rig.focal_px = 140;
+    cameras_ = synth::make_rig(rig);
+    write_colmap_model(root_ / "calibration", cameras_);
+    for (const Camera& cam : cameras_) {
+      for (int f = 0; f < 2; ++f) {
+        write_image_atomic(root_ / "capture" / "walk" / cam.name / (frame_name(f) + ".png"),
+                           cv::Mat(kH, kW, CV_8UC3, cv::Scalar(90, 90, 90)));
+        write_image_atomic(root_ / "masks" / "walk" / cam.name / (frame_name(f) + ".png"),
+                           cylinder_silhouette(cam));
+      }
+    }
+  }
+  fs::path mask(const std::string& camera, int frame) const {
+    return root_ / "masks" / "walk" / camera / (frame_name(frame) + ".png");
+  }
+  fs::path root_;
+  std::vector<Camera> cameras_;
+};
+
+TEST_F(SegmentStage, ConsistentSilhouettesAreExplainedByTheOtherCameras) {
+  ConsistencyCheck check(cameras_);
+  ASSERT_TRUE(check.usable());
+  std::vector<cv::Mat> silhouettes;
+  for (const Camera& cam : cameras_) silhouettes.push_back(cylinder_silhouette(cam));
+  for (double e : check.explained(silhouettes)) EXPECT_GT(e, 0.97);
+  // A camera that keyed a piece of the backdrop as well: only it is flagged.
+  cv::rectangle(silhouettes[2], cv::Rect(5, 5, 30, 30), 255, cv::FILLED);
+  const std::vector<double> e = check.explained(silhouettes);
+  for (std::size_t c = 0; c < e.size(); ++c) {
+    if (c == 2) {
+      EXPECT_LT(e[c], 0.8);
+    } else {
+      EXPECT_GT(e[c], 0.97) << c;
+    }
+  }
+}
+
+TEST_F(SegmentStage, OtherCamerasRecoverWhatOneTookForShadow) {
+  ConsistencyCheck check(cameras_);
+  std::vector<cv::Mat> silhouettes, doubtful;
+  for (const Camera& cam : cameras_) {
+    silhouettes.push_back(cylinder_silhouette(cam));
+    doubtful.push_back(cv::Mat::zeros(kH, kW, CV_8U));
+  }
+  const cv::Mat truth = silhouettes[1].clone();
+  // Camera 1 took the lower half of the performer for a shadow; and a shadow only it doubts.
+  cv::Mat lower = cv::Mat::zeros(kH, kW, CV_8U);
+  lower(cv::Rect(0, kH / 2, kW, kH / 2)).setTo(255);
+  doubtful[1] = truth & lower;
+  silhouettes[1].setTo(0, lower);
+  cv::rectangle(doubtful[1], cv::Rect(2, kH - 12, 30, 10), 255, cv::FILLED);
+  ASSERT_LT(iou(silhouettes[1], truth), 0.8);
+  check.recover(silhouettes, doubtful);
+  EXPECT_GT(iou(silhouettes[1], truth), 0.97);
+  EXPECT_EQ(cv::countNonZero(silhouettes[1](cv::Rect(2, kH - 12, 30, 10))), 0);
+}
+
+TEST_F(SegmentStage, WarnsAboutAnEmptyAndAnInconsistentMaskNamingCameraAndFrame) {
+  cv::Mat bad = cylinder_silhouette(cameras_[2]);
+  cv::rectangle(bad, cv::Rect(5, 5, 30, 30), 255, cv::FILLED);
+  write_image_atomic(mask("cam02", 0), bad);
+  write_image_atomic(mask("cam04", 1), cv::Mat::zeros(kH, kW, CV_8U));
+  const Session session = Session::open(root_);
+  run_segment(session, StageArgs{});
+  const nlohmann::json report = nlohmann::json::parse(read_file(root_ / "segment" / "report.json"));
+  EXPECT_EQ(report["method"], "masks");
+  ASSERT_EQ(report["warning_count"], 2) << report["warnings"].dump(1);
+  const nlohmann::json& w = report["warnings"];
+  EXPECT_EQ(w[0]["camera"], "cam02");
+  EXPECT_EQ(w[0]["frame"], 0);
+  EXPECT_EQ(w[0]["kind"], "inconsistent");
+  EXPECT_EQ(w[1]["camera"], "cam04");
+  EXPECT_EQ(w[1]["frame"], 1);
+  EXPECT_EQ(w[1]["kind"], "foreground_fraction");
+  // The masks are the stage's output as they were supplied.
+  EXPECT_DOUBLE_EQ(iou(read_image(root_ / "segment" / "walk" / "cam00" / "000001.png",
+                                  cv::IMREAD_GRAYSCALE),
+                       cylinder_silhouette(cameras_[0])),
+                   1.0);
+}
+
+TEST_F(SegmentStage, AMaskOfTheWrongSizeStopsTheStage) {
+  write_image_atomic(mask("cam01", 1), cv::Mat::zeros(kH / 2, kW / 2, CV_8U));
+  const Session session = Session::open(root_);
+  try {
+    run_segment(session, StageArgs{});
+    FAIL() << "a mask of the wrong size was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("cam01 frame 1"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(root_ / "segment" / "report.json"));
+}
+
+}  // namespace
+}  // namespace fourd::segment
