@@ -182,7 +182,8 @@ std::vector<detail::ChartRef> vertex_charts(const BodyModel& body, const Eigen::
 
 }  // namespace
 
-Character make_procedural_character(const CharacterOptions& options, std::uint64_t seed) {
+Character make_procedural_character(const CharacterOptions& options, std::uint64_t seed,
+                                    const std::optional<Eigen::Vector3d>& wardrobe_key) {
   if (!(options.height > 0.5 && options.height < 3.0)) {
     throw ConfigError(fmt::format("character.height {} m is not a human height", options.height));
   }
@@ -230,7 +231,7 @@ Character make_procedural_character(const CharacterOptions& options, std::uint64
   skin.inverse_bind.resize(rest.size());
   for (std::size_t j = 0; j < rest.size(); ++j) skin.inverse_bind[j] = rest[j].inverse();
 
-  character.texture = detail::paint_clothing(body, options.texture_size, seed);
+  character.texture = detail::paint_clothing(body, options.texture_size, seed, wardrobe_key);
   return character;
 }
 

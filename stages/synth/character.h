@@ -5,6 +5,8 @@
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 #include <cstdint>
+#include <optional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -111,6 +113,8 @@ struct CharacterOptions {
 // smoothly blended ellipsoids and capsules around the bones, remeshed to near-uniform edges,
 // with smooth skinning weights, per-vertex UVs and a clothing texture (shirt, trousers, skin,
 // hair, shoes; never green, which is the backdrop's colour).
-Character make_procedural_character(const CharacterOptions& options, std::uint64_t seed);
+// `wardrobe_key`: the studio's key colour (studio_key_color), kept out of the clothes.
+Character make_procedural_character(const CharacterOptions& options, std::uint64_t seed,
+                                    const std::optional<Eigen::Vector3d>& wardrobe_key = {});
 
 }  // namespace fourd::synth

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <optional>
+#include <vector>
 
 namespace fourd::synth::detail {
 namespace {
@@ -90,20 +92,53 @@ struct Outfit {
   std::uint64_t seed = 0;
 };
 
-Outfit choose_outfit(std::uint64_t seed) {
-  // No greens anywhere: the backdrop is chroma green.
-  const std::array<Rgb, 12> shirts = {rgb(200, 40, 40),  rgb(40, 80, 190),   rgb(230, 120, 30),
+// Hue [deg] and saturation (HSV) of a colour.
+double hue_deg(const Rgb& c) {
+  const double hi = c.maxCoeff(), lo = c.minCoeff(), d = hi - lo;
+  if (d <= 0) return 0;
+  double h = c.x() == hi ? (c.y() - c.z()) / d : c.y() == hi ? 2 + (c.z() - c.x()) / d
+                                                             : 4 + (c.x() - c.y()) / d;
+  h *= 60;
+  return h < 0 ? h + 360 : h;
+}
+double saturation(const Rgb& c) { return c.maxCoeff() > 0 ? 1 - c.minCoeff() / c.maxCoeff() : 0; }
+
+// A garment a costume department keeps off a key-colour screen: a saturated colour within 40
+// degrees of hue of the key (navy trousers before a blue screen). Greys, whites and blacks key
+// cleanly against any screen.
+bool near_key(const Rgb& c, const std::optional<Rgb>& key) {
+  if (!key || saturation(c) < 0.3 || saturation(*key) < 0.3) return false;
+  const double dh = std::abs(hue_deg(c) - hue_deg(*key));
+  return std::min(dh, 360 - dh) < 40;
+}
+
+// `palette` without the colours near the key, in order (all of it when none is near).
+template <std::size_t N>
+std::vector<Rgb> wardrobe(const std::array<Rgb, N>& palette, const std::optional<Rgb>& key) {
+  std::vector<Rgb> out;
+  for (const Rgb& c : palette) {
+    if (!near_key(c, key)) out.push_back(c);
+  }
+  return out;
+}
+
+Outfit choose_outfit(std::uint64_t seed, const std::optional<Rgb>& key) {
+  // No greens anywhere: the default studio is chroma green. Other keys leave out their own hue.
+  const std::array<Rgb, 12> all_shirts = {rgb(200, 40, 40),  rgb(40, 80, 190),   rgb(230, 120, 30),
                                       rgb(120, 50, 150), rgb(225, 190, 40),  rgb(230, 228, 222),
                                       rgb(140, 140, 148), rgb(30, 40, 95),   rgb(220, 110, 150),
                                       rgb(125, 25, 40),  rgb(120, 170, 220), rgb(40, 38, 42)};
-  const std::array<Rgb, 6> trousers = {rgb(45, 65, 115), rgb(32, 32, 36),  rgb(95, 95, 100),
+  const std::array<Rgb, 6> all_trousers = {rgb(45, 65, 115), rgb(32, 32, 36),  rgb(95, 95, 100),
                                        rgb(185, 158, 112), rgb(100, 70, 45), rgb(38, 42, 75)};
   const std::array<Rgb, 6> skins = {rgb(240, 200, 170), rgb(225, 180, 145), rgb(200, 150, 110),
                                     rgb(165, 115, 80),  rgb(125, 85, 58),  rgb(92, 62, 46)};
   const std::array<Rgb, 6> hairs = {rgb(25, 20, 20),    rgb(60, 40, 25),  rgb(110, 75, 45),
                                     rgb(210, 180, 120), rgb(140, 60, 30), rgb(170, 165, 160)};
-  const std::array<Rgb, 5> shoes = {rgb(25, 25, 28), rgb(225, 225, 225), rgb(90, 55, 35),
+  const std::array<Rgb, 5> all_shoes = {rgb(25, 25, 28), rgb(225, 225, 225), rgb(90, 55, 35),
                                     rgb(170, 30, 35), rgb(40, 60, 140)};
+  const std::vector<Rgb> shirts = wardrobe(all_shirts, key);
+  const std::vector<Rgb> trousers = wardrobe(all_trousers, key);
+  const std::vector<Rgb> shoes = wardrobe(all_shoes, key);
   std::uint64_t state = seed;
   auto pick = [&](std::size_t n) {
     state = splitmix64(state);
@@ -126,7 +161,7 @@ Outfit choose_outfit(std::uint64_t seed) {
   o.iris = pick(2) ? rgb(60, 40, 25) : rgb(60, 90, 140);
   const std::size_t sh = pick(shoes.size());
   o.shoes = shoes[sh];
-  o.sole = sh == 1 ? rgb(90, 90, 95) : rgb(230, 230, 228);
+  o.sole = o.shoes == all_shoes[1] ? rgb(90, 90, 95) : rgb(230, 230, 228);  // white shoes
   o.belt = rgb(55, 35, 25);
   o.shirt_style = static_cast<int>(pick(4));
   o.pattern_period = 0.03 + 0.01 * static_cast<double>(pick(4));
@@ -295,8 +330,9 @@ Vec2f chart_uv(const BodyModel& body, const ChartRef& ref, const Vector3d& p) {
   return Vec2f::Zero();
 }
 
-cv::Mat paint_clothing(const BodyModel& body, int size, std::uint64_t seed) {
-  const Outfit outfit = choose_outfit(seed);
+cv::Mat paint_clothing(const BodyModel& body, int size, std::uint64_t seed,
+                       const std::optional<Eigen::Vector3d>& key) {
+  const Outfit outfit = choose_outfit(seed, key);
   cv::Mat image(size, size, CV_8UC3);
   tbb::parallel_for(0, size, [&](int row) {
     auto* px = image.ptr<cv::Vec3b>(row);

@@ -10,6 +10,7 @@
 // triangles that straddle two charts sample a clean strip of that colour.
 #include <cstdint>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <vector>
 
 #include "pipeline/core/mesh.h"
@@ -27,7 +28,10 @@ struct ChartRef {
 // Texture coordinates of a rest-pose point of the given chart (OBJ convention, v up).
 Vec2f chart_uv(const BodyModel& body, const ChartRef& ref, const Eigen::Vector3d& point);
 
-// The clothing texture (CV_8UC3, BGR) for the atlas: colours and patterns from the seed.
-cv::Mat paint_clothing(const BodyModel& body, int size, std::uint64_t seed);
+// The clothing texture (CV_8UC3, BGR) for the atlas: colours and patterns from the seed. The
+// wardrobe leaves out garments near the studio's key colour (`key`, RGB in [0, 1]), as a costume
+// department dresses a performer for a blue or a green screen; no key: the whole wardrobe.
+cv::Mat paint_clothing(const BodyModel& body, int size, std::uint64_t seed,
+                       const std::optional<Eigen::Vector3d>& key = std::nullopt);
 
 }  // namespace fourd::synth::detail

@@ -159,6 +159,16 @@ ScreenPaint screen_paint(const std::string& backdrop) {
 }
 
 // ---------------------------------------------------------------------------------------------
+}  // namespace
+
+std::optional<Eigen::Vector3d> studio_key_color(const StudioOptions& options) {
+  if (options.room()) return std::nullopt;
+  const Eigen::Vector3f bgr = screen_paint(options.backdrop).wall;
+  return Eigen::Vector3d(bgr.z(), bgr.y(), bgr.x());
+}
+
+namespace {
+
 // The furnished room (backdrop "room"): painted walls with a skirting board and posters, a tiled
 // floor with a rug, and furniture (cupboards, shelves, boxes) along the walls, some of it
 // coloured like the performer's clothes and skin, so that no colour tells the performer apart.

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <memory>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -78,6 +79,10 @@ struct StudioOptions {
   void check() const;
   bool room() const { return backdrop == "room"; }
 };
+
+// The key colour of a chroma studio's screen (RGB in [0, 1]), which a costume department keeps
+// out of the performer's wardrobe; nullopt for the room, which has no key colour.
+std::optional<Eigen::Vector3d> studio_key_color(const StudioOptions& options);
 
 // Work counts of one render, for logs and benchmarks.
 struct RenderStats {

@@ -164,7 +164,8 @@ void run_synth(const Session& session, const StageArgs& args) {
   const double fps = session.config().fps;
 
   log::Timer timer;
-  Character character = make_procedural_character(options.character, options.seed);
+  Character character = make_procedural_character(options.character, options.seed,
+                                                  studio_key_color(options.studio));
   log::info("performer: {} vertices, {} triangles, {} joints, height {:.2f} m ({:.1f} s)",
             character.skin.rest.num_vertices(), character.skin.rest.num_triangles(),
             character.skeleton.size(), character.height, timer.seconds());

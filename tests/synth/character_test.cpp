@@ -29,6 +29,35 @@ double signed_volume(const Mesh& mesh) {
   return volume;
 }
 
+// Fraction of a BGR texture's texels of a saturated colour within `window` degrees of hue.
+double fraction_near_hue(const cv::Mat& bgr, double hue_deg, double window) {
+  cv::Mat hsv;
+  cv::cvtColor(bgr, hsv, cv::COLOR_BGR2HSV_FULL);
+  int near = 0;
+  for (int r = 0; r < hsv.rows; ++r) {
+    for (int c = 0; c < hsv.cols; ++c) {
+      const cv::Vec3b p = hsv.at<cv::Vec3b>(r, c);
+      const double dh = std::abs(p[0] * 360.0 / 256.0 - hue_deg);
+      if (p[1] > 0.4 * 255 && p[2] > 40 && std::min(dh, 360 - dh) < window) ++near;
+    }
+  }
+  return double(near) / double(hsv.total());
+}
+
+// Before a blue screen the performer wears nothing blue (the sample's seed-2012 performer has a
+// blue shirt and shoes); before the green screen the wardrobe is the one it always was.
+TEST(Character, WardrobeKeepsTheStudiosKeyColourOutOfTheClothes) {
+  const Eigen::Vector3d blue(25 / 255.0, 70 / 255.0, 185 / 255.0);
+  const Eigen::Vector3d green(40 / 255.0, 170 / 255.0, 60 / 255.0);
+  const Character any = make_procedural_character(CharacterOptions{}, 2012);
+  const Character blue_screen = make_procedural_character(CharacterOptions{}, 2012, blue);
+  const Character green_screen = make_procedural_character(CharacterOptions{}, 2012, green);
+  const double blue_hue = 223;
+  EXPECT_GT(fraction_near_hue(any.texture, blue_hue, 25), 0.05);
+  EXPECT_LT(fraction_near_hue(blue_screen.texture, blue_hue, 25), 0.002);
+  EXPECT_EQ(cv::norm(any.texture, green_screen.texture, cv::NORM_INF), 0.0);
+}
+
 TEST(Character, SkeletonIsAStandingHumanFacingForward) {
   const Skeleton& sk = default_character().skeleton;
   ASSERT_EQ(sk.size(), 21u);
