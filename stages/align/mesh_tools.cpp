@@ -21,6 +21,7 @@
 
 #include "pipeline/core/error.h"
 #include "pipeline/core/isosurface.h"
+#include "pipeline/geometry/mesh_volume.h"
 #include "stages/align/surface_query.h"
 
 namespace fourd::align {
@@ -244,16 +245,6 @@ double surface_area(const Mesh& mesh) {
   return area;
 }
 
-double enclosed_volume(const Mesh& mesh) {
-  double six_volume = 0;
-  for (const Tri& t : mesh.triangles) {
-    const Eigen::Vector3d a = mesh.positions[t[0]].cast<double>(),
-                          b = mesh.positions[t[1]].cast<double>(),
-                          c = mesh.positions[t[2]].cast<double>();
-    six_volume += a.dot(b.cross(c));
-  }
-  return six_volume / 6;
-}
 
 Mesh largest_component(const Mesh& mesh) {
   UnionFind uf(mesh.num_vertices());

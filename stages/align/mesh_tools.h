@@ -31,8 +31,6 @@ Mesh largest_component(const Mesh& mesh);
 // Total triangle area [m^2].
 double surface_area(const Mesh& mesh);
 
-// Volume enclosed by a closed, outward-oriented mesh [m^3] (divergence theorem).
-double enclosed_volume(const Mesh& mesh);
 
 // A closed manifold mesh of exactly `target_vertices` vertices with near-equilateral
 // triangles approximating `mesh` (its largest component): isotropic remeshing (split, collapse,
