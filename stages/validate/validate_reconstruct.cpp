@@ -380,6 +380,15 @@ StageReport validate_reconstruct(const ValidationContext& ctx) {
           "wall-clock time of the last run divided by its frames (frames run in parallel) [s]");
     } catch (const std::exception&) {
     }
+    try {
+      const nlohmann::json summary =
+          nlohmann::json::parse(read_file(out_dir / "report.json")).at("summary");
+      add("frames_flagged", summary.at("frames_flagged").get<double>(), in,
+          "frames whose result the stage flagged as disagreeing with their silhouettes");
+      add("scale_factor", summary.at("scale_factor").get<double>(), in,
+          "the factor the stage scaled its unset lengths by (subject size / 1.75 m)");
+    } catch (const std::exception&) {
+    }
     add("frames_skipped", skipped, in, "frames the stage reported as not reconstructable");
     summaries.push_back(fmt::format("{}: {} sampled frame(s) compared, {} missing", variant.dir,
                                     compared, missing));

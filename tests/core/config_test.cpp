@@ -122,9 +122,6 @@ struct Sized {
     v("iterations", iterations, "not a length", Range{0, 100});
     v("box", box, "a box [m]", Length{});
   }
-  void check() const {
-    if (tolerance > 10 * voxel) throw ConfigError("tolerance above 10 voxels");
-  }
 };
 struct SizedOuter {
   Sized inner;
@@ -133,6 +130,9 @@ struct SizedOuter {
   void visit(V& v) {
     v("inner", inner, "inner");
     v("ratio", ratio, "a ratio", Range{0, 1});
+  }
+  void check() const {
+    if (inner.tolerance > 10 * inner.voxel) throw ConfigError("tolerance above 10 voxels");
   }
 };
 
