@@ -17,6 +17,18 @@
 // naming the file, line, key path and the accepted values); to_yaml() writes the options a
 // stage actually used. Fields may be bool, int, double, std::string, std::vector of those,
 // another options struct, a std::vector of options structs, or a raw YAML::Node section.
+//
+// Subject-relative lengths. A length whose right value depends on the size of what is filmed
+// (voxel sizes, depth ranges, thresholds in metres) declares it with Length{lo, hi} in place
+// of Range{lo, hi}:
+//
+//       v("voxel_size", voxel_size, "fine voxel size [m]", Length{1e-5, 0.1});
+//
+// Its in-class default is the value for the reference subject (kReferenceSubjectSize, the
+// 1.75 m person the defaults were tuned on). A stage that knows the size of its subject calls
+// scale_unset_lengths(options, factor, set_keys, path), which multiplies every such length the
+// user did not set (read_options records the keys a session.yaml or preset set) by
+// factor = subject size / kReferenceSubjectSize; a length set explicitly is kept as given.
 #include <yaml-cpp/yaml.h>
 
 #include <filesystem>
@@ -35,7 +47,23 @@ namespace fourd {
 struct Range {
   double lo = -std::numeric_limits<double>::infinity();
   double hi = std::numeric_limits<double>::infinity();
+  // A length [m] whose default is for the reference subject and is scaled to the capture's
+  // (see Length and scale_unset_lengths).
+  bool subject_length = false;
 };
+
+// Range of a subject-relative length [m] (see above): lo..hi are the values a user may set.
+struct Length : Range {
+  constexpr Length(double lo_ = 0, double hi_ = std::numeric_limits<double>::infinity())
+      : Range{lo_, hi_, true} {}
+};
+
+// Size of the subject the defaults of subject-relative lengths are tuned for: the largest
+// extent of a 1.75 m tall person standing [m].
+inline constexpr double kReferenceSubjectSize = 1.75;
+
+// Full key paths ("stages.reconstruct.depth.step") that a read set explicitly.
+using SetKeys = std::set<std::string>;
 
 namespace config_detail {
 
@@ -71,19 +99,21 @@ void call_check(const T& opts, const std::string& path) {
 
 template <class T>
 void read_value(const std::string& file, const YAML::Node& node, const std::string& path, T& out,
-                const Range& range);
+                const Range& range, SetKeys* set_keys);
 
 class Reader {
  public:
-  Reader(const std::string& file, const YAML::Node& node, std::string path)
-      : file_(file), node_(node), path_(std::move(path)) {}
+  Reader(const std::string& file, const YAML::Node& node, std::string path, SetKeys* set_keys)
+      : file_(file), node_(node), path_(std::move(path)), set_keys_(set_keys) {}
 
   template <class T>
   void operator()(const char* key, T& field, const char* /*help*/, Range range = {}) {
     known_.insert(key);
     YAML::Node child = node_[key];
     if (!child.IsDefined() || child.IsNull()) return;  // keep the default
-    read_value(file_, child, path_.empty() ? key : path_ + "." + key, field, range);
+    const std::string path = path_.empty() ? key : path_ + "." + key;
+    if (set_keys_) set_keys_->insert(path);
+    read_value(file_, child, path, field, range, set_keys_);
   }
 
   void finish() const {
@@ -105,17 +135,18 @@ class Reader {
   const std::string& file_;
   YAML::Node node_;
   std::string path_;
+  SetKeys* set_keys_;
   std::set<std::string> known_;
 };
 
 template <class T>
 void read_value(const std::string& file, const YAML::Node& node, const std::string& path, T& out,
-                const Range& range) {
+                const Range& range, SetKeys* set_keys) {
   if constexpr (std::is_same_v<T, YAML::Node>) {
     out = node;  // a raw section, mapped later by whoever owns it
   } else if constexpr (is_options<T>::value) {
     if (!node.IsMap()) fail(file, node, path, "expected a mapping of option names to values");
-    Reader reader(file, node, path);
+    Reader reader(file, node, path, set_keys);
     out.visit(reader);
     reader.finish();
     call_check(out, path);
@@ -125,7 +156,7 @@ void read_value(const std::string& file, const YAML::Node& node, const std::stri
     int i = 0;
     for (const auto& item : node) {
       typename T::value_type v{};
-      read_value(file, item, fmt::format("{}[{}]", path, i++), v, range);
+      read_value(file, item, fmt::format("{}[{}]", path, i++), v, range, set_keys);
       values.push_back(std::move(v));
     }
     out = std::move(values);
@@ -150,6 +181,45 @@ void read_value(const std::string& file, const YAML::Node& node, const std::stri
     out = v;
   }
 }
+
+// Multiplies the subject-relative lengths (Range::subject_length) not in `set_keys` by a factor.
+class Scaler {
+ public:
+  Scaler(double factor, const SetKeys& set_keys, std::string path,
+         std::vector<std::string>& scaled)
+      : factor_(factor), set_keys_(set_keys), path_(std::move(path)), scaled_(scaled) {}
+  template <class T>
+  void operator()(const char* key, T& field, const char* /*help*/, Range range = {}) {
+    const std::string path = path_.empty() ? key : path_ + "." + key;
+    if constexpr (is_options<T>::value) {
+      Scaler inner(factor_, set_keys_, path, scaled_);
+      field.visit(inner);
+    } else if constexpr (is_vector<T>::value) {
+      if constexpr (is_options<typename T::value_type>::value) {
+        for (std::size_t i = 0; i < field.size(); ++i) {
+          Scaler inner(factor_, set_keys_, fmt::format("{}[{}]", path, i), scaled_);
+          field[i].visit(inner);
+        }
+      } else if constexpr (std::is_floating_point_v<typename T::value_type>) {
+        if (range.subject_length && !set_keys_.count(path)) {
+          for (auto& v : field) v *= factor_;
+          scaled_.push_back(path);
+        }
+      }
+    } else if constexpr (std::is_floating_point_v<T>) {
+      if (range.subject_length && !set_keys_.count(path)) {
+        field *= factor_;
+        scaled_.push_back(path);
+      }
+    }
+  }
+
+ private:
+  double factor_;
+  const SetKeys& set_keys_;
+  std::string path_;
+  std::vector<std::string>& scaled_;
+};
 
 class Writer {
  public:
@@ -182,15 +252,29 @@ class Writer {
 
 }  // namespace config_detail
 
-// Maps `node` onto `opts`; `file` and `path` only name the source in error messages.
+// Maps `node` onto `opts`; `file` and `path` only name the source in error messages. With
+// `set_keys`, the full path of every key the node sets is added to it.
 template <class T>
 void read_options(const std::string& file, const YAML::Node& node, const std::string& path,
-                  T& opts) {
+                  T& opts, SetKeys* set_keys = nullptr) {
   if (!node.IsDefined() || node.IsNull()) {
     config_detail::call_check(opts, path);
     return;
   }
-  config_detail::read_value(file, node, path, opts, Range{});
+  config_detail::read_value(file, node, path, opts, Range{}, set_keys);
+}
+
+// Multiplies every subject-relative length of `opts` (declared with Length) whose key path
+// (`path` + "." + key, as read_options records it) is not in `set_keys` by `factor`, then
+// runs the options' check() again. Returns the paths of the lengths it scaled.
+template <class T>
+std::vector<std::string> scale_unset_lengths(T& opts, double factor, const SetKeys& set_keys,
+                                             const std::string& path) {
+  std::vector<std::string> scaled;
+  config_detail::Scaler scaler(factor, set_keys, path, scaled);
+  opts.visit(scaler);
+  config_detail::call_check(opts, path);
+  return scaled;
 }
 
 template <class T>
@@ -223,11 +307,16 @@ class Describer {
       } else {
         std::string items;
         for (const auto& item : field) items += (items.empty() ? "" : ", ") + scalar(item);
-        out_ += fmt::format("{}{} = [{}]: {}\n", indent_, key, items, help);
+        out_ += fmt::format("{}{} = [{}]{}: {}\n", indent_, key, items, marker(range), help);
       }
     } else {
-      out_ += fmt::format("{}{} = {}: {}\n", indent_, key, scalar(field), help);
+      out_ += fmt::format("{}{} = {}{}: {}\n", indent_, key, scalar(field), marker(range), help);
     }
+  }
+
+  // After the default of a subject-relative length: it is the reference subject's.
+  static const char* marker(const Range& range) {
+    return range.subject_length ? " (scaled to the subject)" : "";
   }
 
   // Shortest round-trip text: 0.1, not 0.10000000000000001.

@@ -95,11 +95,12 @@ class Session {
   std::filesystem::path config_path() const { return root_ / "session.yaml"; }
 
   // Maps stages.<stage> onto `opts`: the defaults, then each preset's section, then
-  // session.yaml's; errors name the file and line the value came from.
+  // session.yaml's; errors name the file and line the value came from. With `set_keys`, the
+  // keys any of them set ("stages.<stage>.<key>...") are added to it (scale_unset_lengths).
   template <class T>
-  void stage_options(const std::string& stage, T& opts) const {
+  void stage_options(const std::string& stage, T& opts, SetKeys* set_keys = nullptr) const {
     for (const auto& layer : layers_) {
-      read_options(layer.file.string(), layer.stages[stage], "stages." + stage, opts);
+      read_options(layer.file.string(), layer.stages[stage], "stages." + stage, opts, set_keys);
     }
   }
   // The stages.<stage> sections that apply, in the order they are applied (presets first);

@@ -30,6 +30,8 @@ struct ColmapMvsOptions {
   int poisson_depth = 9;              // poisson_mesher octree depth
   double poisson_trim = 5;            // poisson_mesher density trim
   double hull_trim = 0.005;           // faces more than this outside the hull are cut [m]
+  double tie_tolerance = 0.01;        // depth maps agreeing this closely share a tie point [m]
+  double normal_max_jump = 0.02;      // no normal across a depth jump larger than this [m]
   bool keep_workspace = false;        // keep the per-frame workspace (for inspection)
   double timeout_s = 300;             // a COLMAP command still running after this is killed
                                       // and rerun
@@ -48,7 +50,12 @@ struct ColmapMvsOptions {
       Range{0, 180});
     v("poisson_depth", poisson_depth, "poisson_mesher depth", Range{4, 16});
     v("poisson_trim", poisson_trim, "poisson_mesher trim", Range{0, 20});
-    v("hull_trim", hull_trim, "cut faces this far outside the visual hull [m]", Range{0, 1});
+    v("hull_trim", hull_trim, "cut faces this far outside the visual hull [m]", Length{0, 1});
+    v("tie_tolerance", tie_tolerance,
+      "depth maps that agree this closely share a tie point in the workspace [m]",
+      Length{1e-6, 1});
+    v("normal_max_jump", normal_max_jump,
+      "the depth maps' normals skip depth jumps larger than this [m]", Length{1e-6, 1});
     v("keep_workspace", keep_workspace, "keep the COLMAP workspace of each frame");
   }
 };

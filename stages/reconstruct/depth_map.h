@@ -47,23 +47,23 @@ struct DepthMapOptions {
     v("max_angle_deg", max_angle_deg, "largest angle between matched cameras' axes [deg]",
       Range{1, 180});
     v("window_radius", window_radius, "NCC window radius [px]", Range{1, 15});
-    v("front_margin", front_margin, "depth searched in front of the hull [m]", Range{0, 0.5});
-    v("search_depth", search_depth, "depth searched behind the hull [m]", Range{0.001, 2});
-    v("step", step, "depth step of the sweep [m]", Range{0.0001, 0.1});
+    v("front_margin", front_margin, "depth searched in front of the hull [m]", Length{0, 0.5});
+    v("search_depth", search_depth, "depth searched behind the hull [m]", Length{1e-5, 2});
+    v("step", step, "depth step of the sweep [m]", Length{1e-6, 0.1});
     v("min_ncc", min_ncc, "smallest accepted mean NCC", Range{-1, 1});
     v("min_texture", min_texture, "smallest window standard deviation [grey levels]",
       Range{0, 255});
     v("min_window_fill", min_window_fill, "smallest fraction of the window in the silhouette",
       Range{0, 1});
     v("occlusion_margin", occlusion_margin,
-      "how far behind a neighbour's hull surface a point can still be seen [m]", Range{0, 2});
+      "how far behind a neighbour's hull surface a point can still be seen [m]", Length{0, 2});
     v("prefilter_sigma", prefilter_sigma, "Gaussian blur before matching [px]", Range{0, 5});
     v("neighbour_score", neighbour_score,
       "mean | best: a pixel's score is the mean or the best of its neighbours' NCC");
     v("consistent_views", consistent_views,
       "other cameras' depth maps that must agree with a depth (0: keep every depth)", Range{0, 64});
     v("consistency_tolerance", consistency_tolerance,
-      "largest depth difference that counts as agreeing [m]", Range{0.0001, 0.5});
+      "largest depth difference that counts as agreeing [m]", Length{1e-6, 0.5});
   }
   void check() const;
 };

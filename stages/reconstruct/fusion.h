@@ -32,8 +32,8 @@ struct FusionOptions {
 
   template <class V>
   void visit(V& v) {
-    v("truncation", truncation, "TSDF truncation distance [m]", Range{0.001, 0.5});
-    v("band", band, "depth inside the hull where depth maps are fused [m]", Range{0, 2});
+    v("truncation", truncation, "TSDF truncation distance [m]", Length{1e-5, 0.5});
+    v("band", band, "depth inside the hull where depth maps are fused [m]", Length{0, 2});
     v("hull_weight", hull_weight, "weight of the hull's vote relative to one depth map",
       Range{0, 1000});
     v("score_weight", score_weight, "how much NCC scores weight the votes (0..1)", Range{0, 1});

@@ -10,7 +10,12 @@ int main(int argc, char** argv) {
       "stereo and depth-map fusion, remeshed; writes reconstruct/<take>/<frame>.ply, "
       "reconstruct/report.json and (when the whole session is processed) a COLMAP check of the "
       "calibration in reconstruct/calibration_check/. Split into jobs (--take/--frames), each "
-      "writes only its frames; the --finish job then writes the report and the check.",
+      "writes only its frames; the --finish job then writes the report and the check. Lengths "
+      "marked (scaled to the subject) are defaults for a 1.75 m subject: unless session.yaml or "
+      "a preset sets them, they are scaled to the subject's size, measured on the visual hull "
+      "of a few frames (reconstruct/subject.json, reconstruct/options.yaml has the values "
+      "used); the capture volume defaults to the volume the cameras share. Every frame's "
+      "result is checked against its silhouettes: implausible ones are flagged with warnings.",
       /*takes_frame_range=*/true, /*supports_oracle=*/true,
       {fourd::options_section<fourd::reconstruct::ReconstructOptions>("reconstruct")}};
   info.has_finish_job = true;

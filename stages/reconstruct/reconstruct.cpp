@@ -130,9 +130,16 @@ FrameResult reconstruct_frame(const Rig& rig, const FrameInput& input,
     timer.done("visual_hull_remesh");
   }
 
+  // The result against what the silhouettes imply (warnings only, also for a failed frame).
+  auto check = [&](const Mesh& mesh) {
+    result.plausibility = check_plausibility(cameras, input.silhouettes, hull_mesh, mesh,
+                                             options.visual_hull.voxel_size, options.checks);
+    result.warnings.insert(result.warnings.end(), result.plausibility.warnings.begin(),
+                           result.plausibility.warnings.end());
+  };
   Mesh surface;
   if (options.method == "visual_hull") {
-    surface = std::move(hull_mesh);
+    surface = hull_mesh;
   } else {
     // 2. Depth maps, matched on undistorted images, searched behind the hull's first hit.
     MeshRaycaster raycaster(hull_mesh);
@@ -231,10 +238,11 @@ FrameResult reconstruct_frame(const Rig& rig, const FrameInput& input,
         mvs[i].camera = pinholes[i];
         mvs[i].image = rig.undistorters[c].apply(input.images[i], cv::INTER_LINEAR);
         mvs[i].depth = depth_maps[i].depth;
-        mvs[i].normal = depth_map_normals(pinholes[i], depth_maps[i].depth, 0.02);
+        mvs[i].normal =
+            depth_map_normals(pinholes[i], depth_maps[i].depth, options.colmap.normal_max_jump);
       });
       try {
-        write_colmap_workspace(work_dir, mvs);
+        write_colmap_workspace(work_dir, mvs, options.colmap.tie_tolerance);
         const std::size_t points = colmap_stereo_fusion(colmap, work_dir, options.colmap);
         timer.done("colmap_stereo_fusion");
         if (points == 0) throw SolverError("COLMAP stereo_fusion fused no point");
@@ -242,6 +250,7 @@ FrameResult reconstruct_frame(const Rig& rig, const FrameInput& input,
         timer.done("colmap_poisson_mesher");
       } catch (const Error& e) {
         result.failure = e.what();
+        check({});
         return result;
       }
       if (!options.colmap.keep_workspace) {
@@ -254,6 +263,7 @@ FrameResult reconstruct_frame(const Rig& rig, const FrameInput& input,
   }
   if (surface.triangles.empty()) {
     result.failure = "the fused surface is empty";
+    check({});
     return result;
   }
 
@@ -276,6 +286,8 @@ FrameResult reconstruct_frame(const Rig& rig, const FrameInput& input,
     result.low_confidence_fraction =
         result.mesh.confidence.empty() ? 0.0 : double(low) / result.mesh.confidence.size();
   }
+  check(result.mesh);
+  timer.done("checks");
   result.reconstructed = true;
   return result;
 }
@@ -341,13 +353,14 @@ struct Item {
 };
 
 nlohmann::json frame_record(const std::string& take, int frame, const FrameResult& r,
-                            const std::vector<std::string>& warnings, std::size_t cameras_used) {
+                            const std::vector<std::string>& warnings,
+                            const std::vector<std::string>& cameras_used) {
   nlohmann::json j;
   j["take"] = take;
   j["frame"] = frame;
   j["reconstructed"] = r.reconstructed;
   if (!r.reconstructed) j["skipped_because"] = r.failure;
-  j["cameras_used"] = cameras_used;
+  j["cameras_used"] = cameras_used.size();
   j["vertices"] = r.mesh.positions.size();
   j["triangles"] = r.mesh.triangles.size();
   j["depth_coverage"] = r.depth_coverage;
@@ -361,15 +374,36 @@ nlohmann::json frame_record(const std::string& take, int frame, const FrameResul
   j["seconds"] = seconds;
   j["seconds_total"] = total;
   j["warnings"] = warnings;
+  // Flagged: a check of the result against the silhouettes failed (plausibility.h).
+  const PlausibilityReport& p = r.plausibility;
+  j["flagged"] = !p.warnings.empty();
+  if (!p.hull.empty()) {
+    nlohmann::json checks = nlohmann::json::object();
+    for (std::size_t i = 0; i < p.hull.size() && i < cameras_used.size(); ++i) {
+      nlohmann::json c = {{"hull_coverage", p.hull[i].coverage}};
+      if (i < p.mesh.size()) {
+        c["mesh_coverage"] = p.mesh[i].coverage;
+        c["mesh_spill"] = p.mesh[i].spill;
+      }
+      checks[cameras_used[i]] = c;
+    }
+    j["silhouette_checks"] = checks;
+    if (!p.mesh.empty()) {
+      j["mesh_to_hull_volume"] = p.volume_ratio;
+      j["mesh_to_hull_extent"] = p.extent_ratio;
+    }
+  }
   return j;
 }
 
 // report.json from every <take>/<frame>.json present (so farm jobs that each did a range add
 // up), plus this run's timing.
 void write_report(const fs::path& out_dir, const std::vector<TakeFrames>& takes,
-                  const nlohmann::json& run) {
+                  const nlohmann::json& run, const SubjectScale& subject) {
   nlohmann::json report;
   report["run"] = run;
+  report["subject"] = subject.to_json();
+  std::size_t warnings = 0, with_warnings = 0, flagged = 0;
   nlohmann::json frames = nlohmann::json::array();
   std::map<std::string, double> step_sum;
   std::size_t done = 0, skipped = 0;
@@ -385,6 +419,10 @@ void write_report(const fs::path& out_dir, const std::vector<TakeFrames>& takes,
       } catch (const std::exception&) {
         continue;  // a record being written by another job right now
       }
+      const std::size_t w = j.contains("warnings") ? j["warnings"].size() : 0;
+      warnings += w;
+      with_warnings += w > 0;
+      flagged += j.value("flagged", false);
       if (j.value("reconstructed", false)) {
         ++done;
         for (const auto& [step, s] : j["seconds"].items()) step_sum[step] += s.get<double>();
@@ -401,7 +439,13 @@ void write_report(const fs::path& out_dir, const std::vector<TakeFrames>& takes,
   report["summary"] = {{"frames_reconstructed", done},
                        {"frames_skipped", skipped},
                        {"skipped", skipped_list},
-                       {"mean_seconds_per_step", steps}};
+                       {"mean_seconds_per_step", steps},
+                       {"warnings", warnings},
+                       {"frames_with_warnings", with_warnings},
+                       {"frames_flagged", flagged},
+                       {"subject_height_m", subject.height},
+                       {"subject_size_m", subject.size},
+                       {"scale_factor", subject.factor}};
   // Known only when one run did every frame; the --finish job of a split run has no wall time
   // of its jobs (the driver's completion record has it).
   if (run.contains("seconds_per_frame")) report["summary"]["seconds_per_frame"] = run["seconds_per_frame"];
@@ -409,10 +453,67 @@ void write_report(const fs::path& out_dir, const std::vector<TakeFrames>& takes,
   write_file_atomic(out_dir / "report.json", report.dump(1) + "\n");
 }
 
-void write_options_used(const fs::path& out_dir, const ReconstructOptions& options) {
+void write_options_used(const fs::path& out_dir, const ReconstructOptions& options,
+                        const SubjectScale& subject, const std::vector<std::string>& scaled) {
   YAML::Emitter used;
-  used << to_yaml(options);
-  write_file_atomic(out_dir / "options.yaml", std::string(used.c_str()) + "\n");
+  used << shortest_numbers(to_yaml(options));
+  const std::string how =
+      subject.measured
+          ? fmt::format("measured on the visual hull of {} frame(s)", subject.frames_measured)
+          : "given by scale.subject_size";
+  write_file_atomic(
+      out_dir / "options.yaml",
+      fmt::format("# subject {:.4g} m (largest extent, {}; height {:.4g} m), scale factor {:.4g} "
+                  "(reference {} m): {} length(s) not set in session.yaml or a preset scaled by "
+                  "it\n{}\n",
+                  subject.size, how, subject.height, subject.factor, kReferenceSubjectSize,
+                  scaled.size(), used.c_str()));
+}
+
+void write_subject(const fs::path& out_dir, const SubjectScale& subject) {
+  write_file_atomic(out_dir / "subject.json", subject.to_json().dump(1) + "\n");
+}
+
+// Frames spread evenly through the session (every take's frames in order).
+std::vector<Item> spread_items(const std::vector<TakeFrames>& takes, int count) {
+  std::vector<Item> all;
+  for (std::size_t t = 0; t < takes.size(); ++t) {
+    for (int f = 0; f < takes[t].frames; ++f) all.push_back({t, f});
+  }
+  std::vector<Item> out;
+  const std::size_t n = std::min<std::size_t>(count, all.size());
+  for (std::size_t i = 0; i < n; ++i) out.push_back(all[(2 * i + 1) * all.size() / (2 * n)]);
+  return out;
+}
+
+// The subject measured on frames spread through the session: their silhouettes, of the
+// cameras that have one.
+SubjectScale measure_session_subject(const Rig& rig,
+                                     const std::vector<TakeFrames>& takes,
+                                     const ReconstructOptions& options, const Box& shared,
+                                     const fs::path& segment_dir) {
+  std::vector<std::vector<Camera>> cameras;
+  std::vector<std::vector<cv::Mat>> silhouettes;
+  if (options.scale.subject_size <= 0) {
+    for (const Item& item : spread_items(takes, options.scale.sample_frames)) {
+      std::vector<Camera> cams;
+      std::vector<cv::Mat> sils;
+      for (const Camera& cam : rig.cameras) {
+        const fs::path p =
+            segment_dir / takes[item.take].name / cam.name / (frame_name(item.frame) + ".png");
+        std::error_code ec;
+        if (!fs::is_regular_file(p, ec)) continue;
+        cv::Mat s = read_image(p, cv::IMREAD_GRAYSCALE);
+        if (s.cols != cam.intrinsics.width || s.rows != cam.intrinsics.height) continue;
+        cams.push_back(cam);
+        sils.push_back(s);
+      }
+      if (static_cast<int>(cams.size()) < options.min_cameras) continue;
+      cameras.push_back(std::move(cams));
+      silhouettes.push_back(std::move(sils));
+    }
+  }
+  return measure_subject(cameras, silhouettes, options.visual_hull, shared, options.scale);
 }
 
 // --finish: every selected frame has its record (written last for each frame, also for a
@@ -531,11 +632,34 @@ void run_calibration_check(const Session& session, const Rig& rig,
 void run_reconstruct(const Session& session, const StageArgs& args,
                      const CalibrationCheckRequest& request) {
   ReconstructOptions options;
-  session.stage_options("reconstruct", options);
+  SetKeys set_keys;
+  session.stage_options("reconstruct", options, &set_keys);
   const std::vector<Camera> calibration = read_colmap_model(session.calibration_dir());
   const fs::path out_dir = stage_output_dir(session, args, "reconstruct");
   const fs::path segment_dir = stage_input_dir(session, args, "segment");
   ensure_directory(out_dir);
+
+  // The volume the cameras share, where the subject can be carved: the capture volume unless
+  // session.yaml or a preset sets one.
+  const bool volume_set = set_keys.count("stages.reconstruct.visual_hull.volume_min") ||
+                          set_keys.count("stages.reconstruct.visual_hull.volume_max");
+  auto shared_of = [&](const std::vector<Camera>& cameras) {
+    const Box box = shared_volume(
+        cameras, required_views(options.visual_hull, static_cast<int>(cameras.size())));
+    if (box.empty()) {
+      throw InputError(fmt::format(
+          "{}: no point is seen by the {} cameras the visual hull needs of these {} (check the "
+          "calibration, or set stages.reconstruct.visual_hull.volume_min/max)",
+          session.calibration_dir().string(),
+          required_views(options.visual_hull, static_cast<int>(cameras.size())), cameras.size()));
+    }
+    return box;
+  };
+  Box shared;
+  if (!volume_set) {
+    shared = shared_of(calibration);
+    derive_volume(options.visual_hull, shared, 1.0);  // the reference volume and the shared one
+  }
 
   // Cameras that see nothing of the capture volume cannot help: leave them out, loudly.
   std::vector<Camera> usable;
@@ -557,6 +681,7 @@ void run_reconstruct(const Session& session, const StageArgs& args,
         session.calibration_dir().string(), usable.size(), options.min_cameras,
         blind.empty() ? "none" : fmt::format("{}", fmt::join(blind, ", "))));
   }
+  if (!volume_set && !blind.empty()) shared = shared_of(usable);
   const Rig rig = Rig::from(usable);
   const std::vector<TakeFrames> takes = list_takes(session, rig.cameras);
   if (takes.empty()) {
@@ -591,10 +716,35 @@ void run_reconstruct(const Session& session, const StageArgs& args,
     run_calibration_check(session, rig, takes, options, request, out_dir);
   }
   if (request.only) return;
+
+  // The subject's size, and the lengths the user did not set scaled to it.
+  if (volume_set) {
+    const VisualHullOptions& h = options.visual_hull;
+    shared = {{h.volume_min[0], h.volume_min[1], h.volume_min[2]},
+              {h.volume_max[0], h.volume_max[1], h.volume_max[2]}};
+  }
+  const SubjectScale subject =
+      measure_session_subject(rig, takes, options, shared, segment_dir);
+  const std::vector<std::string> scaled =
+      scale_unset_lengths(options, subject.factor, set_keys, "stages.reconstruct");
+  if (!volume_set) derive_volume(options.visual_hull, shared, subject.factor);
+  options.visual_hull.check();
+  options.check();
+  log::info("subject: {:.3g} m largest extent, {:.3g} m high ({}); scale factor {:.4g} of the "
+            "{} m reference: {} length(s) not set are scaled by it; capture volume [{:.3g}, "
+            "{:.3g}, {:.3g}] .. [{:.3g}, {:.3g}, {:.3g}] m",
+            subject.size, subject.height,
+            subject.measured ? fmt::format("visual hull of {} frame(s)", subject.frames_measured)
+                             : std::string("scale.subject_size"),
+            subject.factor, kReferenceSubjectSize, scaled.size(),
+            options.visual_hull.volume_min[0], options.visual_hull.volume_min[1],
+            options.visual_hull.volume_min[2], options.visual_hull.volume_max[0],
+            options.visual_hull.volume_max[1], options.visual_hull.volume_max[2]);
+  write_subject(out_dir, subject);
   if (args.finish) {
     // The jobs' frames are all there: the report adds up their per-frame records.
-    write_report(out_dir, takes, {{"frames", items.size()}, {"split_into_jobs", true}});
-    write_options_used(out_dir, options);
+    write_report(out_dir, takes, {{"frames", items.size()}, {"split_into_jobs", true}}, subject);
+    write_options_used(out_dir, options, subject, scaled);
     log::info("reconstruct: report over {} frame(s) written to {}", items.size(),
               (out_dir / "report.json").string());
     return;
@@ -602,7 +752,7 @@ void run_reconstruct(const Session& session, const StageArgs& args,
   log::info("reconstructing {} frame(s) of {} take(s) from {} cameras, method {}", items.size(),
             takes.size(), rig.cameras.size(), options.method);
 
-  std::atomic<std::size_t> failed{0};
+  std::atomic<std::size_t> failed{0}, flagged{0};
   std::mutex log_mutex;
   log::Progress progress("reconstructing frames", items.size());
   log::Timer wall;
@@ -652,6 +802,7 @@ void run_reconstruct(const Session& session, const StageArgs& args,
                                  out_dir / "work" / take / frame_name(frame));
     }
     warnings.insert(warnings.end(), result.warnings.begin(), result.warnings.end());
+    if (!result.plausibility.warnings.empty()) ++flagged;
     const fs::path mesh_path = out_dir / take / (frame_name(frame) + ".ply");
     const fs::path hull_path = out_dir / "visual_hull" / take / (frame_name(frame) + ".ply");
     ensure_directory(mesh_path.parent_path());
@@ -668,8 +819,10 @@ void run_reconstruct(const Session& session, const StageArgs& args,
       fs::remove(hull_path, ec);
       ++failed;
     }
+    std::vector<std::string> used_names;
+    for (int c : input.cameras) used_names.push_back(rig.cameras[c].name);
     write_file_atomic(out_dir / take / (frame_name(frame) + ".json"),
-                      frame_record(take, frame, result, warnings, input.cameras.size()).dump(1) + "\n");
+                      frame_record(take, frame, result, warnings, used_names).dump(1) + "\n");
     {
       std::lock_guard lock(log_mutex);
       for (const auto& w : warnings) log::warn("take {} frame {}: {}", take, frame, w);
@@ -711,8 +864,8 @@ void run_reconstruct(const Session& session, const StageArgs& args,
                         {"threads", tbb::this_task_arena::max_concurrency()},
                         {"method", options.method}};
   if (sel.whole()) {
-    write_report(out_dir, takes, run);
-    write_options_used(out_dir, options);
+    write_report(out_dir, takes, run, subject);
+    write_options_used(out_dir, options, subject, scaled);
   } else {
     log::info("a job of a split run: reconstruct/report.json is left to `fourd-reconstruct "
               "--finish`");
@@ -726,6 +879,11 @@ void run_reconstruct(const Session& session, const StageArgs& args,
   if (failed.load() > 0) {
     log::warn("{} frame(s) could not be reconstructed and were skipped: see {}", failed.load(),
               (out_dir / "report.json").string());
+  }
+  if (flagged.load() > 0) {
+    log::warn("{} frame(s) flagged: their result disagrees with what the silhouettes imply (the "
+              "warnings above, and \"flagged\" in their records)",
+              flagged.load());
   }
 }
 

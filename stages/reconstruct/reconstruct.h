@@ -21,8 +21,16 @@
 //                                    warnings, or why it was skipped
 //   visual_hull/<take>/<frame>.ply   the visual hull alone (isosurface of a coarser sampling
 //                                    of the hull field, not remeshed; validation compares both)
-//   report.json                      every frame's record plus a summary, rebuilt after each run
-//   options.yaml                     the options used
+//   report.json                      every frame's record plus a summary (warnings counted,
+//                                    the subject's size and scale factor), rebuilt after each run
+//   options.yaml                     the options used, the lengths derived from the subject's
+//                                    size included
+//   subject.json                     the subject's size, the scale factor and the volume the
+//                                    cameras share (subject.h), for later stages
+//
+// Subject-relative lengths (config.h, Length) that session.yaml and its presets leave unset are
+// scaled to the subject (subject.h), and the capture volume defaults to the volume the cameras
+// share; every frame's result is checked against its silhouettes (plausibility.h).
 //   calibration_check/               COLMAP's view of the calibration (calibration_check.h)
 #include <filesystem>
 #include <map>
@@ -42,6 +50,8 @@
 #include "stages/reconstruct/fusion.h"
 #include "stages/reconstruct/mesh_cleanup.h"
 #include "stages/reconstruct/pinhole.h"
+#include "stages/reconstruct/plausibility.h"
+#include "stages/reconstruct/subject.h"
 #include "stages/reconstruct/visual_hull.h"
 
 namespace fourd::reconstruct {
@@ -64,10 +74,10 @@ struct GuidedPassOptions {
     v("filled_weight", filled_weight,
       "weight of filled-in depths in the guide's fusion (relative to a matched depth)",
       Range{0, 1000});
-    v("front_margin", front_margin, "depth searched in front of the guide [m]", Range{0, 0.5});
-    v("search_depth", search_depth, "depth searched behind the guide [m]", Range{0.001, 2});
+    v("front_margin", front_margin, "depth searched in front of the guide [m]", Length{0, 0.5});
+    v("search_depth", search_depth, "depth searched behind the guide [m]", Length{1e-5, 2});
     v("occlusion_margin", occlusion_margin,
-      "how far behind a neighbour's guide surface a point can still be seen [m]", Range{0, 2});
+      "how far behind a neighbour's guide surface a point can still be seen [m]", Length{0, 2});
   }
 };
 
@@ -99,6 +109,8 @@ struct ReconstructOptions {
   ColmapMvsOptions colmap;
   RemeshOptions remesh;
   CalibrationCheckOptions calibration_check;
+  SubjectScaleOptions scale;
+  PlausibilityOptions checks;
 
   template <class V>
   void visit(V& v) {
@@ -121,6 +133,8 @@ struct ReconstructOptions {
     v("colmap", colmap, "COLMAP fusion and meshing (method colmap)");
     v("remesh", remesh, "final remeshing");
     v("calibration_check", calibration_check, "calibration check with COLMAP");
+    v("scale", scale, "the subject's size, to which unset lengths are scaled");
+    v("checks", checks, "every frame's result checked against its silhouettes (warnings)");
   }
   void check() const;
 };
@@ -151,6 +165,7 @@ struct FrameResult {
   double depth_coverage = 0;           // fraction of hull pixels that got a depth
   // Fraction of the mesh's vertices of confidence below 0.5 (mostly the hull's: Mesh::confidence).
   double low_confidence_fraction = 0;
+  PlausibilityReport plausibility;     // its warnings are also in `warnings`
 };
 
 // Reconstructs one frame. A frame that cannot be reconstructed (empty hull, COLMAP failing)

@@ -28,12 +28,14 @@ struct VisualHullOptions {
 
   template <class V>
   void visit(V& v) {
-    v("voxel_size", voxel_size, "fine voxel size [m]", Range{0.0005, 0.1});
-    v("coarse_voxel", coarse_voxel, "coarse voxel size [m]", Range{0.005, 0.5});
-    v("margin", margin, "margin around the coarse bounding box [m]", Range{0, 1});
+    v("voxel_size", voxel_size, "fine voxel size [m]", Length{1e-5, 0.1});
+    v("coarse_voxel", coarse_voxel, "coarse voxel size [m]", Length{1e-4, 0.5});
+    v("margin", margin, "margin around the coarse bounding box [m]", Length{0, 1});
     v("block", block, "fine voxels per block edge", Range{2, 64});
-    v("volume_min", volume_min, "capture volume lower corner [m]");
-    v("volume_max", volume_max, "capture volume upper corner [m]");
+    v("volume_min", volume_min,
+      "capture volume lower corner [m] (unset: the volume the cameras share, subject.h)");
+    v("volume_max", volume_max,
+      "capture volume upper corner [m] (unset: the volume the cameras share)");
     v("min_views", min_views, "cameras that must see a point", Range{1, 1000});
     v("min_view_fraction", min_view_fraction, "fraction of the cameras that must see a point",
       Range{0, 1});

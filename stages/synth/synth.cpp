@@ -59,7 +59,30 @@ void write_json(const fs::path& path, const nlohmann::json& j) {
   write_file_atomic(path, j.dump(1) + "\n");
 }
 
-nlohmann::json take_json(const MotionClip& clip) {
+// The motions' parameters in metres (or metres per second), which scale with the scene.
+bool is_length_parameter(const std::string& name) {
+  return name == "speed" || name == "jump_length" || name == "jump_height" ||
+         name == "reach_x" || name == "reach_y" || name == "reach_z";
+}
+
+std::vector<double> scaled(std::vector<double> v, double s) {
+  for (double& x : v) x *= s;
+  return v;
+}
+
+// The cameras of a scene `s` times the size: the same orientations and intrinsics, centres
+// `s` times as far from the origin (the same images).
+std::vector<Camera> scaled_cameras(std::vector<Camera> cameras, double s) {
+  for (Camera& c : cameras) c.camera_from_world.translation() *= s;
+  return cameras;
+}
+
+Mesh scaled_mesh(Mesh mesh, double s) {
+  for (Vec3f& p : mesh.positions) p *= static_cast<float>(s);
+  return mesh;
+}
+
+nlohmann::json take_json(const MotionClip& clip, double s) {
   nlohmann::json j;
   j["take"] = clip.spec.take;
   j["kind"] = clip.spec.kind;
@@ -69,33 +92,37 @@ nlohmann::json take_json(const MotionClip& clip) {
   j["spec"] = {{"take", clip.spec.take},
                {"kind", clip.spec.kind},
                {"frames", clip.spec.frames},
-               {"speed", clip.spec.speed},
+               {"speed", clip.spec.speed * s},
                {"turn_rate", clip.spec.turn_rate},
-               {"jump_length", clip.spec.jump_length},
-               {"jump_height", clip.spec.jump_height},
-               {"reach_target", clip.spec.reach_target},
+               {"jump_length", clip.spec.jump_length * s},
+               {"jump_height", clip.spec.jump_height * s},
+               {"reach_target", scaled(clip.spec.reach_target, s)},
                {"start_heading", clip.spec.start_heading},
-               {"start_position", clip.spec.start_position},
+               {"start_position", scaled(clip.spec.start_position, s)},
                {"start_phase", clip.spec.start_phase}};
   nlohmann::json params = nlohmann::json::object();
-  for (const auto& [name, value] : clip.parameters) params[name] = value;
+  for (const auto& [name, value] : clip.parameters) {
+    params[name] = is_length_parameter(name) ? value * s : value;
+  }
   j["parameters"] = params;
   nlohmann::json root = nlohmann::json::array();
-  for (const RootState& r : clip.root) root.push_back({r.position.x(), r.position.y(), r.heading});
+  for (const RootState& r : clip.root) {
+    root.push_back({r.position.x() * s, r.position.y() * s, r.heading});
+  }
   j["root"] = root;
   j["phase"] = clip.phase;
   return j;
 }
 
-nlohmann::json character_json(const Character& character) {
+nlohmann::json character_json(const Character& character, double s) {
   nlohmann::json j;
   j["name"] = character.name;
-  j["height"] = character.height;
+  j["height"] = character.height * s;
   j["vertices"] = character.skin.rest.num_vertices();
   j["triangles"] = character.skin.rest.num_triangles();
   nlohmann::json joints = nlohmann::json::array();
   for (std::size_t i = 0; i < character.skeleton.size(); ++i) {
-    const Eigen::Vector3d& o = character.skeleton.rest_offsets[i];
+    const Eigen::Vector3d o = character.skeleton.rest_offsets[i] * s;
     joints.push_back({{"name", character.skeleton.names[i]},
                       {"parent", character.skeleton.parents[i]},
                       {"offset", {o.x(), o.y(), o.z()}}});
@@ -166,9 +193,11 @@ void run_synth(const Session& session, const StageArgs& args) {
   log::Timer timer;
   Character character = make_procedural_character(options.character, options.seed,
                                                   studio_key_color(options.studio));
-  log::info("performer: {} vertices, {} triangles, {} joints, height {:.2f} m ({:.1f} s)",
+  const double s = options.scale;
+  log::info("performer: {} vertices, {} triangles, {} joints, height {:.3g} m{} ({:.1f} s)",
             character.skin.rest.num_vertices(), character.skin.rest.num_triangles(),
-            character.skeleton.size(), character.height, timer.seconds());
+            character.skeleton.size(), character.height * s,
+            s == 1 ? std::string() : fmt::format(" (the scene at scale {:g})", s), timer.seconds());
 
   // Every take is generated before anything is written: a take that cannot be performed
   // (too few frames for its jump, say) must not leave half a session behind.
@@ -195,13 +224,14 @@ void run_synth(const Session& session, const StageArgs& args) {
   prepare_output_dirs(session, options.studio.room());
 
   // Calibration as the studio would deliver it, and the truth for validation.
-  write_colmap_model(session.calibration_dir(),
-                     perturb_calibration(rig, options.calibration_noise, options.seed));
+  write_colmap_model(
+      session.calibration_dir(),
+      scaled_cameras(perturb_calibration(rig, options.calibration_noise, options.seed), s));
   const fs::path gt = session.ground_truth_dir();
-  write_colmap_model(gt / "calibration", rig);
-  write_mesh(gt / "template.ply", character.skin.rest);
+  write_colmap_model(gt / "calibration", scaled_cameras(rig, s));
+  write_mesh(gt / "template.ply", s == 1 ? character.skin.rest : scaled_mesh(character.skin.rest, s));
   write_image_atomic(gt / "texture.png", character.texture);
-  write_json(gt / "character.json", character_json(character));
+  write_json(gt / "character.json", character_json(character, s));
   {
     YAML::Emitter out;
     out << to_yaml(options);
@@ -233,6 +263,7 @@ void run_synth(const Session& session, const StageArgs& args) {
       Mesh gt_mesh;
       gt_mesh.positions = posed.positions;
       gt_mesh.triangles = posed.triangles;
+      if (s != 1) gt_mesh = scaled_mesh(std::move(gt_mesh), s);
       write_mesh(gt / "meshes" / spec.take / (name + ".ply"), gt_mesh);
       renderer.set_performer(posed, character.texture);
       float gain = 1.0f;
@@ -250,7 +281,7 @@ void run_synth(const Session& session, const StageArgs& args) {
       });
       progress.step();
     }
-    write_json(gt / "takes" / (spec.take + ".json"), take_json(clip));
+    write_json(gt / "takes" / (spec.take + ".json"), take_json(clip, s));
     std::string params;
     for (const auto& [k, v] : clip.parameters) params += fmt::format(" {}={:.3f}", k, v);
     log::info("take {}: {} frames ({}){}", spec.take, frames, spec.kind, params);

@@ -37,6 +37,12 @@ struct SynthOptions {
   StudioOptions studio;
   CalibrationNoise calibration_noise;
   bool center_takes = true;  // shift each take so its ground path is centred in the volume
+  // Size of the whole scene relative to the one described: performer, motion, rig and studio
+  // together, as a studio filming a smaller subject puts its cameras closer. Pinhole images are
+  // the same at any scale, so the capture is rendered at scale 1 and only what is metric is
+  // scaled: the calibration, and the ground truth (meshes, template, skeleton, root paths and
+  // the motions' parameters in metres).
+  double scale = 1;
   std::vector<MotionSpec> takes;
 
   template <class V>
@@ -48,6 +54,9 @@ struct SynthOptions {
     v("calibration_noise", calibration_noise, "error added to the written calibration");
     v("center_takes", center_takes,
       "shift each take so its ground path is centred on the volume (ignores start_position)");
+    v("scale", scale,
+      "size of the whole scene (performer, motion, rig) relative to the one described",
+      Range{1e-3, 1e3});
     v("takes", takes, "the takes to perform and capture");
   }
   void check() const;

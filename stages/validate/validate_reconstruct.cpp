@@ -8,7 +8,9 @@
 // Both surfaces are sampled uniformly by area (a fixed number of points per mesh, fixed seed);
 // accuracy = distance of reconstruction samples to the true surface, completeness = fraction of
 // true-surface samples within 10 mm of the reconstruction, F-score at 5 mm from precision and
-// recall at 5 mm. Distances by MeshQuery (CGAL's AABB tree).
+// recall at 5 mm. Distances by MeshQuery (CGAL's AABB tree). The same relative to the subject's
+// height H (the vertical extent of ground_truth/template.ply, the rest pose), so subjects of
+// any size compare: accuracy in % of H, completeness within 0.6 % of H (10.5 mm at 1.75 m).
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 #include <tbb/parallel_for.h>
@@ -86,13 +88,19 @@ struct Distances {
   }
 };
 
+constexpr double kCompletenessPctHeight = 0.6;
+
 struct Scores {
   double accuracy_median = 0, accuracy_p90 = 0, completeness = 0, fscore = 0;
-  static Scores of(const Distances& d) {
+  double completeness_relative = 0;  // within kCompletenessPctHeight % of the height
+  // `height_mm`: the subject's height (0: unknown).
+  static Scores of(const Distances& d, double height_mm) {
     Scores s;
     s.accuracy_median = percentile(d.accuracy, 0.5);
     s.accuracy_p90 = percentile(d.accuracy, 0.9);
     s.completeness = fraction_within(d.completeness, kCompletenessMm);
+    s.completeness_relative =
+        fraction_within(d.completeness, kCompletenessPctHeight / 100 * height_mm);
     const double precision = fraction_within(d.accuracy, kFscoreMm);
     const double recall = fraction_within(d.completeness, kFscoreMm);
     s.fscore = precision + recall > 0 ? 2 * precision * recall / (precision + recall) : 0;
@@ -200,6 +208,17 @@ struct Variant {
   InputKind input;
 };
 
+// The subject's height [mm]: the vertical extent of the true rest pose; 0 without one.
+double truth_height_mm(const Session& session) {
+  std::error_code ec;
+  const fs::path templ = session.ground_truth_dir() / "template.ply";
+  if (!fs::is_regular_file(templ, ec)) return 0;
+  const Mesh mesh = read_ply(templ);
+  Vec3f lo, hi;
+  bounding_box(mesh, &lo, &hi);
+  return mesh.positions.empty() ? 0.0 : 1000.0 * (hi.z() - lo.z());
+}
+
 }  // namespace
 
 StageReport validate_reconstruct(const ValidationContext& ctx) {
@@ -227,6 +246,11 @@ StageReport validate_reconstruct(const ValidationContext& ctx) {
                                    ? session.ground_truth_dir() / "calibration"
                                    : session.calibration_dir();
   const std::vector<Camera> cameras = read_colmap_model(calibration);
+  const double height_mm = truth_height_mm(session);
+  if (height_mm > 0) {
+    report.metrics.push_back({"subject_height_mm", height_mm, InputKind::kPipeline,
+                              "height of the true subject (its rest pose) [mm]"});
+  }
 
   auto add = [&](const std::string& name, double value, InputKind input, const std::string& meaning) {
     report.metrics.push_back({name, value, input, meaning});
@@ -277,7 +301,7 @@ StageReport validate_reconstruct(const ValidationContext& ctx) {
     }
     const InputKind in = variant.input;
     auto add_scores = [&](const std::string& prefix, const Distances& d, const std::string& what) {
-      const Scores s = Scores::of(d);
+      const Scores s = Scores::of(d, height_mm);
       add(prefix + "accuracy_median_mm", s.accuracy_median, in,
           "median distance of " + what + " surface samples to the true surface [mm]");
       add(prefix + "accuracy_p90_mm", s.accuracy_p90, in,
@@ -285,6 +309,15 @@ StageReport validate_reconstruct(const ValidationContext& ctx) {
       add(prefix + "completeness_10mm", s.completeness, in,
           "fraction of true-surface samples within 10 mm of " + what);
       add(prefix + "fscore_5mm", s.fscore, in, "F-score of precision and recall at 5 mm (" + what + ")");
+      if (height_mm > 0) {
+        add(prefix + "accuracy_median_pct_height", 100 * s.accuracy_median / height_mm, in,
+            "median distance of " + what + " surface samples to the true surface [% of the "
+            "subject's height]");
+        add(prefix + "accuracy_p90_pct_height", 100 * s.accuracy_p90 / height_mm, in,
+            "90th percentile of that distance [% of the subject's height]");
+        add(prefix + "completeness_0p6pct_height", s.completeness_relative, in,
+            "fraction of true-surface samples within 0.6 % of the subject's height of " + what);
+      }
       return s;
     };
     if (compared > 0) add_scores("", all_mesh, "the final mesh");
@@ -345,6 +378,15 @@ StageReport validate_reconstruct(const ValidationContext& ctx) {
       const nlohmann::json run = nlohmann::json::parse(read_file(out_dir / "report.json")).at("run");
       add("wall_seconds_per_frame", run.at("seconds_per_frame").get<double>(), in,
           "wall-clock time of the last run divided by its frames (frames run in parallel) [s]");
+    } catch (const std::exception&) {
+    }
+    try {
+      const nlohmann::json summary =
+          nlohmann::json::parse(read_file(out_dir / "report.json")).at("summary");
+      add("frames_flagged", summary.at("frames_flagged").get<double>(), in,
+          "frames whose result the stage flagged as disagreeing with their silhouettes");
+      add("scale_factor", summary.at("scale_factor").get<double>(), in,
+          "the factor the stage scaled its unset lengths by (subject size / 1.75 m)");
     } catch (const std::exception&) {
     }
     add("frames_skipped", skipped, in, "frames the stage reported as not reconstructable");

@@ -109,5 +109,79 @@ TEST(Config, DescribeListsEveryFieldWithItsDefault) {
   EXPECT_NE(text.find("values = [0.1, 2.5]: numbers\n"), std::string::npos) << text;
 }
 
+// Subject-relative lengths: defaults for the reference subject, scaled unless set.
+struct Sized {
+  double voxel = 0.006;
+  double tolerance = 0.01;
+  int iterations = 4;
+  std::vector<double> box = {-1.0, 2.0};
+  template <class V>
+  void visit(V& v) {
+    v("voxel", voxel, "voxel [m]", Length{1e-5, 1});
+    v("tolerance", tolerance, "tolerance [m]", Length{1e-6, 1});
+    v("iterations", iterations, "not a length", Range{0, 100});
+    v("box", box, "a box [m]", Length{});
+  }
+};
+struct SizedOuter {
+  Sized inner;
+  double ratio = 0.5;
+  template <class V>
+  void visit(V& v) {
+    v("inner", inner, "inner");
+    v("ratio", ratio, "a ratio", Range{0, 1});
+  }
+  void check() const {
+    if (inner.tolerance > 10 * inner.voxel) throw ConfigError("tolerance above 10 voxels");
+  }
+};
+
+TEST(Config, ScalesOnlyTheLengthsNotSet) {
+  SizedOuter o;
+  SetKeys set;
+  read_options("session.yaml", YAML::Load("inner: {tolerance: 0.02, iterations: 7}\n"),
+               "stages.x", o, &set);
+  EXPECT_TRUE(set.count("stages.x.inner.tolerance"));
+  EXPECT_FALSE(set.count("stages.x.inner.voxel"));
+  const std::vector<std::string> scaled = scale_unset_lengths(o, 2.0, set, "stages.x");
+  EXPECT_DOUBLE_EQ(o.inner.voxel, 0.012);       // default, scaled
+  EXPECT_DOUBLE_EQ(o.inner.tolerance, 0.02);    // set: kept
+  EXPECT_EQ(o.inner.iterations, 7);             // not a length
+  EXPECT_DOUBLE_EQ(o.ratio, 0.5);
+  EXPECT_EQ(o.inner.box, (std::vector<double>{-2.0, 4.0}));
+  EXPECT_EQ(scaled, (std::vector<std::string>{"stages.x.inner.voxel", "stages.x.inner.box"}));
+  // The options used show the derived value.
+  const YAML::Node used = to_yaml(o);
+  EXPECT_DOUBLE_EQ(used["inner"]["voxel"].as<double>(), 0.012);
+  EXPECT_DOUBLE_EQ(used["inner"]["tolerance"].as<double>(), 0.02);
+}
+
+TEST(Config, KeysSetByAnyLayerAreKeptAndFactorOneChangesNothing) {
+  SizedOuter o;
+  SetKeys set;
+  read_options("preset.yaml", YAML::Load("inner: {voxel: 0.004}\n"), "stages.x", o, &set);
+  read_options("session.yaml", YAML::Load("ratio: 0.25\n"), "stages.x", o, &set);
+  SizedOuter same = o;
+  scale_unset_lengths(same, 1.0, set, "stages.x");
+  EXPECT_EQ(YAML::Dump(to_yaml(same)), YAML::Dump(to_yaml(o)));
+  scale_unset_lengths(o, 0.05, set, "stages.x");
+  EXPECT_DOUBLE_EQ(o.inner.voxel, 0.004);
+  EXPECT_DOUBLE_EQ(o.inner.tolerance, 0.01 * 0.05);
+}
+
+TEST(Config, ScalingChecksTheOptionsAgain) {
+  // An explicit voxel with a scaled-up tolerance breaks the cross-field check.
+  SizedOuter o;
+  SetKeys set;
+  read_options("session.yaml", YAML::Load("inner: {voxel: 0.002}\n"), "stages.x", o, &set);
+  EXPECT_THROW(scale_unset_lengths(o, 3.0, set, "stages.x"), ConfigError);
+}
+
+TEST(Config, DescribeMarksSubjectLengths) {
+  const std::string text = describe_options(SizedOuter{});
+  EXPECT_NE(text.find("voxel = 0.006 (scaled to the subject): voxel [m]"), std::string::npos);
+  EXPECT_NE(text.find("iterations = 4: not a length"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace fourd
