@@ -408,6 +408,8 @@ void write_report(const fs::path& out_dir, const std::vector<TakeFrames>& takes,
   std::map<std::string, double> step_sum;
   std::size_t done = 0, skipped = 0;
   nlohmann::json skipped_list = nlohmann::json::array();
+  // Every frame's warnings, named "take/frame: ...": what `fourd status` counts.
+  nlohmann::json warning_list = nlohmann::json::array();
   for (const TakeFrames& t : takes) {
     for (int f = 0; f < t.frames; ++f) {
       fs::path p = out_dir / t.name / (frame_name(f) + ".json");
@@ -420,6 +422,11 @@ void write_report(const fs::path& out_dir, const std::vector<TakeFrames>& takes,
         continue;  // a record being written by another job right now
       }
       const std::size_t w = j.contains("warnings") ? j["warnings"].size() : 0;
+      for (std::size_t k = 0; k < w; ++k) {
+        const nlohmann::json& text = j["warnings"][k];
+        warning_list.push_back(fmt::format("{}/{}: {}", t.name, frame_name(f),
+                                           text.is_string() ? text.get<std::string>() : text.dump()));
+      }
       warnings += w;
       with_warnings += w > 0;
       flagged += j.value("flagged", false);
@@ -449,6 +456,7 @@ void write_report(const fs::path& out_dir, const std::vector<TakeFrames>& takes,
   // Known only when one run did every frame; the --finish job of a split run has no wall time
   // of its jobs (the driver's completion record has it).
   if (run.contains("seconds_per_frame")) report["summary"]["seconds_per_frame"] = run["seconds_per_frame"];
+  report["warnings"] = warning_list;
   report["frames"] = frames;
   write_file_atomic(out_dir / "report.json", report.dump(1) + "\n");
 }
