@@ -23,6 +23,7 @@
 #include "pipeline/core/log.h"
 #include "pipeline/core/mesh_io.h"
 #include "pipeline/core/statistics.h"
+#include "pipeline/core/subject.h"
 #include "pipeline/geometry/measures.h"
 #include "stages/align/mesh_tools.h"
 #include "stages/align/shape_tree.h"
@@ -931,7 +932,8 @@ void refit_outliers(Plan& plan, Registrations& reg, TreeRegistration& registrati
 
 // The finish job: merges the branch jobs' results, re-parents and keeps what failed, runs the
 // baseline and writes the reports.
-void run_finish_job(const fs::path& out, const StageArgs& args, const AlignOptions& options) {
+void run_finish_job(const fs::path& out, const StageArgs& args, const AlignOptions& options,
+                    const std::string& options_header) {
   log::Timer timer;
   Registrations reg(0);
   Mesh template_mesh;
@@ -1103,7 +1105,7 @@ void run_finish_job(const fs::path& out, const StageArgs& args, const AlignOptio
                  {"per_frame", per_frame}};
   if (options.sequential_baseline) report["sequential"] = sequential;
   write_file_atomic(out / "report.json", report.dump(1) + "\n");
-  write_file_atomic(out / "options.yaml", options_text(options));
+  write_file_atomic(out / "options.yaml", options_header + options_text(options));
   log::info("aligned {} of {} frames ({} of them kept despite a failed fit, flagged), surface rms "
             "{:.2f} mm, {} flipped triangles, {:.2f} s per frame",
             aligned_count, frames.size(), flagged_count, report["surface_rms_mm"].get<double>(), flipped,
@@ -1113,23 +1115,43 @@ void run_finish_job(const fs::path& out, const StageArgs& args, const AlignOptio
 }  // namespace
 
 void run_align(const Session& session, const StageArgs& args) {
-  AlignOptions options;
-  session.stage_options("align", options);
   const fs::path in = stage_input_dir(session, args, "reconstruct");
   const fs::path out = stage_output_dir(session, args, "align");
+  // The subject the lengths scale to: reconstruct's, or measured on a few input meshes when
+  // reconstruct/ was imported. Every job of the stage derives the same options.
+  const Subject subject = stage_subject(session, in, [&] {
+    const std::vector<FrameData> frames = list_frames(in, FrameSelection{});
+    std::vector<Mesh> meshes;
+    for (std::size_t i : spread_indices(frames.size(), 5)) {
+      try {
+        meshes.push_back(load_frame(frames[i]));
+      } catch (const Error&) {  // an unreadable frame is excluded, with its reason, later
+      }
+    }
+    return measure_subject(meshes, in.string());
+  });
+  AlignOptions options;
+  SetKeys set_keys;
+  std::size_t scaled = subject_stage_options(session, "align", subject, options, &set_keys).size();
+  // The creases' curvature threshold is an inverse length.
+  if (!set_keys.count("stages.align.registration.crease_curvature")) {
+    options.registration.crease_curvature /= subject.factor;
+    ++scaled;
+  }
+  const std::string header = subject_comment(subject, scaled);
   if (args.tree) {
     run_tree_job(in, out, args, options);
   } else if (args.branch >= 0) {
     run_branch_job(out, args.branch, options);
   } else if (args.finish) {
-    run_finish_job(out, args, options);
+    run_finish_job(out, args, options, header);
   } else {
     // The whole stage in one process: the same jobs, one after the other.
     StageArgs whole = args;
     whole.branches = 1;
     run_tree_job(in, out, whole, options);
     run_branch_job(out, 0, options);
-    run_finish_job(out, args, options);
+    run_finish_job(out, args, options, header);
   }
 }
 

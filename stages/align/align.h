@@ -59,7 +59,7 @@ struct AlignOptions {
     v("handle_voxel", handle_voxel,
       "voxel of the morphological clean-up that removes the root frame's small handles (tunnels, "
       "an arm merged with the body) before it becomes the template [m]; 0: none",
-      Range{0, 0.1});
+      Length{0, 1});
     v("handle_radius", handle_radius,
       "largest radius [voxels] of that clean-up's closing and opening (tried from 1 up): the "
       "larger, the thicker the handles it removes",
@@ -72,7 +72,7 @@ struct AlignOptions {
       "least, the one whose surface has the fewest handles is the root (an arm merged into the "
       "body makes a poorer template)",
       Range{0, 10});
-    v("max_surface_rms", max_surface_rms, "largest accepted fit rms [m]", Range{1e-4, 10});
+    v("max_surface_rms", max_surface_rms, "largest accepted fit rms [m]", Length{1e-06, 100});
     v("max_uncovered_fraction", max_uncovered_fraction,
       "largest accepted fraction of the frame left uncovered", Range{0, 1});
     v("far_edge_factor", far_edge_factor, "flag tree edges longer than this x the median",

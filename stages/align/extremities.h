@@ -26,7 +26,7 @@ struct ExtremityOptions {
   template <class V>
   void visit(V& v) {
     v("radius", radius, "a tip is the farthest vertex within this geodesic radius [m]",
-      Range{1e-3, 10});
+      Length{1e-05, 100});
     v("min_fraction", min_fraction,
       "tips are at least this fraction of the farthest vertex's geodesic distance",
       Range{0, 1});
@@ -34,11 +34,11 @@ struct ExtremityOptions {
     v("tolerance", tolerance,
       "matched tips' geodesic distances differ by at most this fraction of the template's",
       Range{0, 10});
-    v("min_tolerance", min_tolerance, "... or by this [m]", Range{0, 10});
+    v("min_tolerance", min_tolerance, "... or by this [m]", Length{0, 100});
     v("max_match_distance", max_match_distance, "matched tips farther apart are not matched [m]",
-      Range{0, 100});
+      Length{0, 1000});
     v("anchor_distance", anchor_distance,
-      "a frame tip the fit covers anchors the template tip this near it [m]", Range{0, 10});
+      "a frame tip the fit covers anchors the template tip this near it [m]", Length{0, 100});
   }
 };
 

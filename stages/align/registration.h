@@ -92,12 +92,12 @@ struct RegistrationOptions {
     v("iterations_per_level", iterations_per_level, "Gauss-Newton iterations per level",
       Range{1, 1000});
     v("max_distance", max_distance, "largest correspondence distance, first level [m]",
-      Range{1e-4, 10});
+      Length{1e-06, 100});
     v("final_max_distance", final_max_distance,
-      "largest correspondence distance, last level and refinement [m]", Range{1e-4, 10});
+      "largest correspondence distance, last level and refinement [m]", Length{1e-06, 100});
     v("normal_angle", normal_angle, "largest angle between matched normals [deg]",
       Range{0, 180});
-    v("robust_scale", robust_scale, "Cauchy scale of the residuals [m]", Range{1e-5, 10});
+    v("robust_scale", robust_scale, "Cauchy scale of the residuals [m]", Length{1e-07, 100});
     v("point_to_point", point_to_point, "point-to-point weight relative to point-to-plane",
       Range{0, 100});
     v("reverse_weight", reverse_weight,
@@ -108,7 +108,7 @@ struct RegistrationOptions {
     v("refine_weight", refine_weight, "refinement data weight relative to its stiffness",
       Range{1e-6, 1e6});
     v("coverage_distance", coverage_distance,
-      "a frame point farther than this from the fit counts as uncovered [m]", Range{1e-4, 10});
+      "a frame point farther than this from the fit counts as uncovered [m]", Length{1e-06, 100});
     v("landmark_weight", landmark_weight,
       "weight of one matched tip (head, hand, foot) as a number of vertices' data terms "
       "(0: no landmarks)",
@@ -129,11 +129,11 @@ struct RegistrationOptions {
       "their joints towards the frame's tips and the frame registered again (0: no such retry)",
       Range{0, 1});
     v("limb_blend", limb_blend, "a turned limb's rotation fades in over this geodesic distance [m]",
-      Range{0, 10});
+      Length{0, 100});
     v("limb_band", limb_band,
       "a limb is also followed along the frame's surface in rings of equal geodesic distance from "
       "its tip, this wide [m]: the rings' centres give the limb's bends",
-      Range{1e-3, 1});
+      Length{1e-05, 10});
     v("bent_first_level", bent_first_level,
       "the fit from the limbs bent along the frame begins at this level (0: the first): the "
       "coarse levels' stiff regulariser would straighten the bends",

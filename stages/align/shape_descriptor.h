@@ -24,8 +24,8 @@ struct DescriptorOptions {
 
   template <class V>
   void visit(V& v) {
-    v("voxel", voxel, "voxel edge of the occupancy grid [m]", Range{0.002, 0.2});
-    v("radius", radius, "outer radius of the histogram [m]", Range{0.05, 100});
+    v("voxel", voxel, "voxel edge of the occupancy grid [m]", Length{2e-05, 2});
+    v("radius", radius, "outer radius of the histogram [m]", Length{0.0005, 1000});
     v("shells", shells, "radial shells", Range{1, 100});
     v("elevations", elevations, "elevation bands", Range{1, 64});
     v("sectors", sectors, "azimuth sectors about the up axis", Range{1, 360});

@@ -9,6 +9,7 @@
 #include "pipeline/core/error.h"
 #include "pipeline/core/files.h"
 #include "pipeline/core/log.h"
+#include "pipeline/core/subject.h"
 #include "stages/graph/similarity.h"
 
 namespace fourd::graph {
@@ -180,7 +181,8 @@ nlohmann::json graph_summary(const MotionGraph& graph, const GraphBuildReport& r
 
 void run_graph(const Session& session, const StageArgs& args) {
   GraphOptions options;
-  session.stage_options("graph", options);
+  SetKeys set_keys;
+  session.stage_options("graph", options, &set_keys);
   options.check();
   const SessionConfig& config = session.config();
   const fs::path in_dir = motion_space_dir(session, args);
@@ -195,6 +197,19 @@ void run_graph(const Session& session, const StageArgs& args) {
                                    motion.name, motion.cyclic ? "cyclic" : "one-shot"));
     }
   }
+  // E_S is a squared distance: cost_unit (per m^2) scales with the subject as 1 / factor^2, so
+  // that lambda weighs latency against the same relative dissimilarity for a subject of any
+  // size (reconstruct's subject, else the motion spaces' character height).
+  const Subject subject = stage_subject(session, session.dir("reconstruct"), [&] {
+    Subject s;
+    s.size = s.height = spaces.front().character_height;
+    s.factor = subject_scale_factor(s.size);
+    s.source = "the motion spaces' character height";
+    return s;
+  });
+  const bool scale_cost = !set_keys.count("stages.graph.transitions.cost_unit");
+  if (scale_cost) options.transitions.cost_unit /= subject.factor * subject.factor;
+  log_subject("graph", subject, scale_cost ? 1 : 0);
   log::Timer timer;
   GraphBuildReport report;
   Asset asset;

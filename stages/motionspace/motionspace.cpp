@@ -9,6 +9,7 @@
 #include "pipeline/core/files.h"
 #include "pipeline/core/image_io.h"
 #include "pipeline/core/log.h"
+#include "pipeline/core/subject.h"
 #include "stages/motionspace/table1.h"
 #include "pipeline/core/staged_folder.h"
 #include "stages/timewarp/timewarp_io.h"
@@ -101,8 +102,13 @@ MotionSpace build_motion_space(const WarpedClass& c, const MotionspaceOptions& o
 }
 
 void run_motionspace(const Session& session, const StageArgs& args) {
+  // epsilon scales to reconstruct's subject, or to the template's size when align/ was imported.
+  const Subject subject = stage_subject(session, session.dir("reconstruct"), [&] {
+    const std::filesystem::path align = stage_input_dir(session, args, "align");
+    return measure_subject({timewarp::open_aligned_input(align).template_mesh}, align.string());
+  });
   MotionspaceOptions options;
-  session.stage_options("motionspace", options);
+  subject_stage_options(session, "motionspace", subject, options);
   const SessionConfig& config = session.config();
   if (config.motions.empty()) {
     throw InputError(fmt::format("{}: no motion classes declared (motions:)",

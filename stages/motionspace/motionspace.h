@@ -36,7 +36,8 @@ struct MotionspaceOptions {
 
   template <class V>
   void visit(V& v) {
-    v("epsilon", epsilon, "hybrid blend within this of the non-linear blend [m]");
+    v("epsilon", epsilon, "hybrid blend within this of the non-linear blend [m]",
+      Length{1e-7, 1});
     v("max_depth", max_depth, "bisection levels per cell at most", Range{0, 30});
     v("max_references", max_references, "hybrid references per class at most",
       Range{0, 100000});

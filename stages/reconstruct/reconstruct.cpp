@@ -479,7 +479,7 @@ void write_options_used(const fs::path& out_dir, const ReconstructOptions& optio
 }
 
 void write_subject(const fs::path& out_dir, const SubjectScale& subject) {
-  write_file_atomic(out_dir / "subject.json", subject.to_json().dump(1) + "\n");
+  write_file_atomic(out_dir / kSubjectFile, subject.to_json().dump(1) + "\n");
 }
 
 // Frames spread evenly through the session (every take's frames in order).
@@ -489,8 +489,9 @@ std::vector<Item> spread_items(const std::vector<TakeFrames>& takes, int count) 
     for (int f = 0; f < takes[t].frames; ++f) all.push_back({t, f});
   }
   std::vector<Item> out;
-  const std::size_t n = std::min<std::size_t>(count, all.size());
-  for (std::size_t i = 0; i < n; ++i) out.push_back(all[(2 * i + 1) * all.size() / (2 * n)]);
+  for (std::size_t i : spread_indices(all.size(), static_cast<std::size_t>(count))) {
+    out.push_back(all[i]);
+  }
   return out;
 }
 

@@ -125,13 +125,6 @@ Box hull_box(const std::vector<Camera>& cameras, const std::vector<cv::Mat>& sil
   return box;
 }
 
-double scale_factor(double size, int steps_per_decade) {
-  const double f = size / kReferenceSubjectSize;
-  if (steps_per_decade <= 0) return f;
-  const double k = std::round(steps_per_decade * std::log10(f));
-  return k == 0 ? 1.0 : std::pow(10.0, k / steps_per_decade);
-}
-
 nlohmann::json SubjectScale::to_json() const {
   return {{"subject_size_m", size},
           {"subject_height_m", height},
@@ -188,7 +181,7 @@ SubjectScale measure_subject(const std::vector<std::vector<Camera>>& frame_camer
   s.frames_measured = static_cast<int>(sizes.size());
   s.size = median(sizes);
   s.height = median(heights);
-  s.factor = scale_factor(s.size, options.steps_per_decade);
+  s.factor = subject_scale_factor(s.size, options.steps_per_decade);
   return s;
 }
 

@@ -25,6 +25,7 @@
 
 #include "pipeline/core/camera.h"
 #include "pipeline/core/config.h"
+#include "pipeline/core/subject.h"
 #include "stages/reconstruct/visual_hull.h"
 
 namespace fourd::reconstruct {
@@ -71,8 +72,6 @@ Box shared_volume(const std::vector<Camera>& cameras, int views, int cells = 64)
 Box hull_box(const std::vector<Camera>& cameras, const std::vector<cv::Mat>& silhouettes,
              const VisualHullOptions& hull, const Box& volume, int cells);
 
-// size / kReferenceSubjectSize, rounded to 10^(k / steps_per_decade) (not when 0).
-double scale_factor(double size, int steps_per_decade);
 
 struct SubjectScale {
   double size = kReferenceSubjectSize;    // largest side of the hull's box, median [m]

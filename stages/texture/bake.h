@@ -34,7 +34,7 @@ struct BakeOptions {
     v("edge_pixels", edge_pixels, "weight ramp inside the mesh's outline in an image [px]",
       Range{0, 100});
     v("occlusion_offset", occlusion_offset, "start of visibility rays above the surface [m]",
-      Range{0, 0.1});
+      Length{0, 1});
     v("seam_width", seam_width, "texels over which seam corrections fade (0: no levelling)",
       Range{0, 256});
   }

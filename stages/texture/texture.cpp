@@ -12,6 +12,7 @@
 #include "pipeline/core/files.h"
 #include "pipeline/core/log.h"
 #include "pipeline/core/mesh_io.h"
+#include "pipeline/core/subject.h"
 #include "stages/texture/texture_io.h"
 #include "pipeline/core/staged_folder.h"
 #include "stages/timewarp/timewarp.h"
@@ -71,13 +72,16 @@ void TextureOptions::check() const {
 }
 
 void run_texture(const Session& session, const StageArgs& args) {
-  TextureOptions options;
-  session.stage_options("texture", options);
-  const std::string extension = texture_extension(options.format, "stages.texture.format");
   const fs::path in = stage_input_dir(session, args, "align");
   const fs::path out = stage_output_dir(session, args, "texture");
   log::info("reading aligned meshes from {}", in.string());
   const timewarp::AlignedInput input = timewarp::open_aligned_input(in);
+  // Lengths scale to reconstruct's subject, or to the template's size when align/ was imported.
+  const Subject subject =
+      stage_subject(session, in, [&] { return measure_subject({input.template_mesh}, in.string()); });
+  TextureOptions options;
+  subject_stage_options(session, "texture", subject, options);
+  const std::string extension = texture_extension(options.format, "stages.texture.format");
   const Mesh& templ = input.template_mesh;
   const std::vector<Camera> cameras = read_colmap_model(session.calibration_dir());
   const std::vector<std::string> takes = aligned_takes(in);

@@ -27,7 +27,8 @@ namespace fs = std::filesystem;
 // fresh connectivity; small template and graph so the test stays quick.
 class AlignSession {
  public:
-  AlignSession() {
+  // `scale`: the whole capture at this size (1: the 1.67 m figure).
+  explicit AlignSession(float scale = 1) {
     std::string pattern = (fs::temp_directory_path() / "fourd_align_session_XXXXXX").string();
     if (::mkdtemp(pattern.data()) == nullptr) throw std::runtime_error("mkdtemp failed");
     root_ = pattern;
@@ -38,7 +39,8 @@ class AlignSession {
     for (const auto& [take, phases] : takes) {
       for (std::size_t f = 0; f < phases.size(); ++f) {
         const Mesh posed = test::pose_figure(figure, test::walk_pose(figure, phases[f], 0.05 * f));
-        const Mesh frame = test::remesh_fresh(posed, 0.02, {0.003 * f, 0.002, 0.001});
+        Mesh frame = test::remesh_fresh(posed, 0.02, {0.003 * f, 0.002, 0.001});
+        for (Vec3f& p : frame.positions) p *= scale;
         write_ply(frame_file(take, static_cast<int>(f)), frame);
       }
     }
@@ -131,6 +133,32 @@ TEST(AlignStage, BranchJobsGiveTheSameMeshesAsTheWholeStage) {
   const auto tree_a = nlohmann::json::parse(read_file(whole.out() / "tree.json"));
   const auto tree_b = nlohmann::json::parse(read_file(split.out() / "tree.json"));
   EXPECT_EQ(tree_a["nodes"], tree_b["nodes"]);
+}
+
+// Lengths scale with the subject: the same capture at a tenth of its size aligns to the same
+// meshes at a tenth of the size (max_surface_rms, set in the session, is not scaled: both pass).
+TEST(AlignStage, ASubjectATenthTheSizeAlignsTheSameInRelativeTerms) {
+  AlignSession full;
+  full.run(StageArgs{});
+  AlignSession tenth(0.1f);
+  tenth.run(StageArgs{});
+  const auto full_report = nlohmann::json::parse(read_file(full.out() / "report.json"));
+  const auto tenth_report = nlohmann::json::parse(read_file(tenth.out() / "report.json"));
+  ASSERT_EQ(full_report["aligned"].get<int>(), 9);
+  EXPECT_EQ(tenth_report["aligned"].get<int>(), 9);
+  EXPECT_NEAR(tenth_report["surface_rms_mm"].get<double>(),
+              0.1 * full_report["surface_rms_mm"].get<double>(),
+              0.02 * full_report["surface_rms_mm"].get<double>());
+  EXPECT_NE(read_file(tenth.out() / "options.yaml").find("scale factor 0.1 "), std::string::npos);
+  double worst = 0;
+  for (const char* file : {"walk_a/000002.ply", "walk_b/000003.ply"}) {
+    const Mesh a = read_ply(full.out() / file), b = read_ply(tenth.out() / file);
+    ASSERT_EQ(a.num_vertices(), b.num_vertices()) << file;
+    for (std::size_t v = 0; v < a.num_vertices(); ++v) {
+      worst = std::max(worst, static_cast<double>((a.positions[v] - 10.0f * b.positions[v]).norm()));
+    }
+  }
+  EXPECT_LT(worst, 0.005) << "largest vertex difference, at full size [m]";
 }
 
 TEST(AlignStage, JobsRefuseAMissingOrStalePlan) {

@@ -88,9 +88,9 @@ TEST(SubjectScale, GivenSizeAndRounding) {
   const SubjectScale s = measure(1, given);
   EXPECT_FALSE(s.measured);
   EXPECT_DOUBLE_EQ(s.factor, 0.2);
-  EXPECT_EQ(scale_factor(1.75 * 1.05, 20), 1.0);
-  EXPECT_NEAR(scale_factor(1.75 * 2, 20), std::pow(10.0, 6 / 20.0), 1e-12);
-  EXPECT_DOUBLE_EQ(scale_factor(3.5, 0), 2.0);
+  EXPECT_EQ(subject_scale_factor(1.75 * 1.05, 20), 1.0);
+  EXPECT_NEAR(subject_scale_factor(1.75 * 2, 20), std::pow(10.0, 6 / 20.0), 1e-12);
+  EXPECT_DOUBLE_EQ(subject_scale_factor(3.5, 0), 2.0);
 }
 
 TEST(SubjectScale, NoHullIsAnError) {
