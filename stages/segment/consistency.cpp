@@ -52,6 +52,8 @@ ConsistencyCheck::ConsistencyCheck(const std::vector<Camera>& cameras) : cameras
   for (const Camera& cam : cameras) distances.push_back((cam.center() - centre).norm());
   std::nth_element(distances.begin(), distances.begin() + n / 2, distances.end());
   const double reach = distances[n / 2];
+  centre_ = centre;
+  reach_ = reach;
   const int min_views = std::max(kMinCameras, static_cast<int>(std::ceil(kMinViewFraction * n - 1e-9)));
   auto views = [&](const Eigen::Vector3d& p) {
     int k = 0;

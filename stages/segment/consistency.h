@@ -34,6 +34,11 @@ class ConsistencyCheck {
   void recover(std::vector<cv::Mat>& silhouettes, const std::vector<cv::Mat>& doubtful) const;
 
   bool usable() const { return usable_; }
+  // The point the cameras' optical axes pass nearest and the cameras' median distance from it
+  // (valid when has_aim(): at least kMinCameras cameras whose axes are not all parallel).
+  bool has_aim() const { return reach_ > 0; }
+  const Eigen::Vector3d& aim_centre() const { return centre_; }
+  double aim_reach() const { return reach_; }
 
  private:
   // Camera c's image of the `kept` voxels, each a disc of `scale` times its bounding sphere's.
@@ -43,6 +48,8 @@ class ConsistencyCheck {
   std::vector<Eigen::Vector3d> centres_;     // voxel centres seen by enough cameras
   std::vector<std::int32_t> pixel_;          // [voxel * cameras + camera]: pixel index or -1
   std::vector<float> radius_px_;             // [voxel * cameras + camera]: projected radius
+  Eigen::Vector3d centre_ = Eigen::Vector3d::Zero();
+  double reach_ = 0;
   bool usable_ = false;
 };
 

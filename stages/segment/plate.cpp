@@ -83,6 +83,22 @@ PlateModel learn_plate(const std::vector<cv::Mat>& plates, const std::string& ca
   return model;
 }
 
+cv::Mat floor_shadow_region(const Camera& camera, const Eigen::Vector3d& centre, double radius) {
+  const int w = camera.intrinsics.width, h = camera.intrinsics.height;
+  cv::Mat region = cv::Mat::zeros(h, w, CV_8U);
+  const double r2 = radius * radius;
+  for (int y = 0; y < h; ++y) {
+    std::uint8_t* out = region.ptr<std::uint8_t>(y);
+    for (int x = 0; x < w; ++x) {
+      const Ray ray = camera.unproject(Eigen::Vector2d(x + 0.5, y + 0.5));
+      if (!(ray.direction.z() < 0) || !(ray.origin.z() > 0)) continue;
+      const Eigen::Vector3d hit = ray.origin - (ray.origin.z() / ray.direction.z()) * ray.direction;
+      if ((hit.head<2>() - centre.head<2>()).squaredNorm() <= r2) out[x] = 255;
+    }
+  }
+  return region;
+}
+
 cv::Vec3d background_gain(const cv::Mat& bgr, const PlateModel& plate) {
   CV_Assert(bgr.type() == CV_8UC3 && bgr.size() == plate.mean.size());
   std::vector<float> ratios;
@@ -129,9 +145,11 @@ cv::Mat plate_silhouette(const cv::Mat& bgr, const PlateModel& plate,
   cv::Mat sure_fg(bgr.size(), CV_8U), sure_bg(bgr.size(), CV_8U), midpoint(bgr.size(), CV_8U);
   const float mid = static_cast<float>(0.5 * (kSureBackground + kSureForeground));
   cv::Mat shade_only = cv::Mat::zeros(bgr.size(), CV_8U);
+  const bool shadows_anywhere = plate.shadow_region.empty();
   for (int r = 0; r < bgr.rows; ++r) {
     const cv::Vec3b* in = bgr.ptr<cv::Vec3b>(r);
     const cv::Vec3f* m = plate.mean.ptr<cv::Vec3f>(r);
+    const std::uint8_t* may_shade = shadows_anywhere ? nullptr : plate.shadow_region.ptr<std::uint8_t>(r);
     cv::Vec3f* bg = background.ptr<cv::Vec3f>(r);
     std::uint8_t *f = sure_fg.ptr<std::uint8_t>(r), *b = sure_bg.ptr<std::uint8_t>(r);
     std::uint8_t* u = midpoint.ptr<std::uint8_t>(r);
@@ -143,7 +161,8 @@ cv::Mat plate_silhouette(const cv::Mat& bgr, const PlateModel& plate,
       const float bb = B.dot(B);
       const float alpha = bb > 1.0f ? col.dot(B) / bb : 1.0f;
       const float norm_b = std::sqrt(bb);
-      const float shade = std::clamp(alpha, static_cast<float>(kShadowDarkest), 1.0f);
+      const float darkest = !may_shade || may_shade[c] ? static_cast<float>(kShadowDarkest) : 1.0f;
+      const float shade = std::clamp(alpha, darkest, 1.0f);
       const float off_chroma = static_cast<float>(
           std::max(0.0, cv::norm(col - alpha * B) - kChromaSlack * alpha * norm_b));
       const float off_brightness = std::abs(alpha - shade) * norm_b;

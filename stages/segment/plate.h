@@ -3,11 +3,16 @@
 // silhouette of a frame against it. The model tolerates the light changing between the plates
 // and the frame (a gain per colour channel, estimated on the pixels that are surely background)
 // and the performer's shadows: a pixel darker than the plate by a factor down to
-// kShadowDarkest but of the plate's chromaticity is background.
+// kShadowDarkest but of the plate's chromaticity is background, where a shadow of the
+// performer can fall: on the floor (z = 0, the session's convention) around the rig's centre.
+// Elsewhere (walls, furniture, the floor far away) a darker pixel is the performer: dark clothes
+// over a grey wall are not taken for a shadow.
+#include <Eigen/Core>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
 
+#include "pipeline/core/camera.h"
 #include "stages/segment/segment.h"
 
 namespace fourd::segment {
@@ -16,7 +21,15 @@ struct PlateModel {
   cv::Mat mean;        // CV_32FC3 BGR, the mean of the plates [8-bit levels]
   double sigma = 0;    // sensor noise of one image, std-dev per channel [8-bit levels]
   int plates = 0;      // images the mean is of
+  // CV_8UC1, nonzero where the plate shows surface the performer's shadows can fall on (the
+  // floor around the rig's centre, floor_shadow_region); empty: everywhere.
+  cv::Mat shadow_region;
 };
+
+// The pixels of `camera` whose ray meets the floor plane z = 0 within `radius` (horizontally) of
+// `centre` (the point the cameras look at, z > 0) — CV_8UC1, 0/255. Where a ray meets no floor
+// nearer (it rises, or meets the floor farther out) the plate shows a wall or far floor.
+cv::Mat floor_shadow_region(const Camera& camera, const Eigen::Vector3d& centre, double radius);
 
 // The model of one camera from its plates (BGR, all of one size). With one plate the noise is
 // estimated from the plate's fine detail. Throws InputError naming `camera` when there is no

@@ -26,6 +26,9 @@ namespace {
 constexpr double kMinExplained = 0.85;
 // Warnings logged one by one; the rest are counted in the log and listed in report.json.
 constexpr std::size_t kMaxLoggedWarnings = 40;
+// The performer's shadows are looked for on the floor within this fraction of the cameras'
+// distance from the point they look at: the volume they share and a shadow's length beyond it.
+constexpr double kShadowReach = 0.8;
 
 struct Item {
   std::size_t take;
@@ -151,6 +154,12 @@ void run_segment(const Session& session, const StageArgs& args) {
   report["method"] = choice.method;
   report["reason"] = choice.reason;
 
+  const ConsistencyCheck consistency(cameras);
+  if (!consistency.usable()) {
+    log::info("no cross-camera check: {} camera(s) share too little of the volume",
+              cameras.size());
+  }
+
   // The per-camera models (the --finish job learns them again for the report).
   std::vector<Backdrop> backdrops(cameras.size());
   std::vector<KeyModel> keys(cameras.size());
@@ -182,8 +191,22 @@ void run_segment(const Session& session, const StageArgs& args) {
                                         {"backdrop_above", keys[c].backdrop_above}};
     }
   } else if (choice.method == "plate") {
+    // The performer's shadows fall on the floor (z = 0) around where the cameras look; without
+    // a floor below that point (it lies at or under z = 0) they may be anywhere.
+    const bool shadow_floor = consistency.has_aim() && consistency.aim_centre().z() > 0;
+    if (shadow_floor) {
+      log::info("shadows only on the floor within {:.3g} m of ({:.3g}, {:.3g})",
+                kShadowReach * consistency.aim_reach(), consistency.aim_centre().x(),
+                consistency.aim_centre().y());
+    } else {
+      log::info("shadows anywhere: the cameras do not look at a point above the floor z = 0");
+    }
     tbb::parallel_for(std::size_t{0}, cameras.size(), [&](std::size_t c) {
       plates[c] = learn_plate(read_plates(session, cameras[c]), cameras[c].name);
+      if (shadow_floor) {
+        plates[c].shadow_region = floor_shadow_region(cameras[c], consistency.aim_centre(),
+                                                      kShadowReach * consistency.aim_reach());
+      }
     });
     for (std::size_t c = 0; c < cameras.size(); ++c) {
       log::info("camera {}: background model from {} plate(s), noise {:.2f} grey levels",
@@ -201,11 +224,6 @@ void run_segment(const Session& session, const StageArgs& args) {
     require_free_space(out_dir, items.size() * pixels,
                        fmt::format("segment's masks of {} frames of {} cameras", items.size(),
                                    cameras.size()));
-  }
-  const ConsistencyCheck consistency(cameras);
-  if (!consistency.usable()) {
-    log::info("no cross-camera check: {} camera(s) share too little of the volume",
-              cameras.size());
   }
   const std::size_t nc = cameras.size();
   std::vector<double> fractions(items.size() * nc, 0.0), explained(items.size() * nc, -1.0);

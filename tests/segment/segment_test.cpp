@@ -164,6 +164,56 @@ TEST(SegmentPlate, ToleratesAGainChangeAndAShadow) {
   EXPECT_LT(cv::countNonZero(mask(shadow)), shadow.area() / 100) << "the shadow is foreground";
 }
 
+// Shadows are background only where the plate shows the floor near the rig's centre: a dark
+// grey coat over a grey wall, darker than the wall by a shadow's factor, is the performer.
+TEST(SegmentPlate, ShadowsOnlyWhereTheFloorCanTakeThem) {
+  std::mt19937 rng(5);
+  cv::Mat empty = room(rng);
+  const PlateModel anywhere = learn_plate({empty}, "cam00");
+  PlateModel floor_only = anywhere;
+  floor_only.shadow_region = cv::Mat::zeros(kH, kW, CV_8U);
+  floor_only.shadow_region(cv::Rect(0, 90, kW, kH - 90)).setTo(255);  // the tiled floor
+  cv::Mat frame = empty.clone();
+  const cv::Rect shadow(100, 95, 50, 20), coat(60, 10, 30, 60);  // coat over the wall
+  cv::Mat darker;
+  frame(shadow).convertTo(darker, CV_8UC3, 0.45);
+  darker.copyTo(frame(shadow));
+  frame(coat).convertTo(darker, CV_8UC3, 0.5);
+  darker.copyTo(frame(coat));
+  add_noise(frame, rng, 2.0);
+  const cv::Mat a = plate_silhouette(frame, anywhere, SegmentOptions{});
+  const cv::Mat f = plate_silhouette(frame, floor_only, SegmentOptions{});
+  EXPECT_LT(cv::countNonZero(a(coat)), coat.area() / 10) << "shadows anywhere: the coat is lost";
+  EXPECT_GT(cv::countNonZero(f(coat)), coat.area() * 95 / 100);
+  EXPECT_LT(cv::countNonZero(f(shadow)), shadow.area() / 100) << "the floor's shadow is foreground";
+}
+
+// The floor region of a camera of the ring: the floor under the rig's centre is in it, the wall
+// above the horizon and the floor beyond the radius are not.
+TEST(SegmentPlate, FloorShadowRegionIsTheFloorAroundTheCentre) {
+  synth::RigOptions rig;
+  rig.count = 4;
+  rig.width = 160;
+  rig.height_px = 120;
+  rig.focal_px = 140;
+  const Camera cam = synth::make_rig(rig).front();
+  const Eigen::Vector3d centre(0, 0, 1);
+  const cv::Mat region = floor_shadow_region(cam, centre, 2.0);
+  ASSERT_EQ(region.size(), cv::Size(160, 120));
+  Eigen::Vector2d px;
+  ASSERT_TRUE(cam.project(Eigen::Vector3d(0, 0, 0), &px));
+  EXPECT_EQ(region.at<std::uint8_t>(static_cast<int>(px.y()), static_cast<int>(px.x())), 255);
+  ASSERT_TRUE(cam.project(Eigen::Vector3d(0, 0, 1.6), &px));  // level with the camera: the wall
+  EXPECT_EQ(region.at<std::uint8_t>(static_cast<int>(px.y()), static_cast<int>(px.x())), 0);
+  const Eigen::Vector3d far = -2.5 * cam.center().normalized();  // floor 2.5 m beyond the centre
+  ASSERT_TRUE(cam.project(Eigen::Vector3d(far.x(), far.y(), 0), &px));
+  if (cam.in_image(px)) {
+    EXPECT_EQ(region.at<std::uint8_t>(static_cast<int>(px.y()), static_cast<int>(px.x())), 0);
+  }
+  EXPECT_EQ(cv::countNonZero(floor_shadow_region(cam, centre, 100.0)(cv::Rect(0, 0, 160, 1))), 0)
+      << "the top row looks above the horizon";
+}
+
 TEST(SegmentMasks, AWrongSizeIsAnErrorNamingFileCameraAndFrame) {
   const fs::path dir = test::scratch_dir("segment_masks_size");
   const fs::path path = dir / "000007.png";
