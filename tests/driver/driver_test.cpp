@@ -649,29 +649,54 @@ TEST(DefaultsFile, MatchesWhatTheBuiltStagesPrint) {
   }
 }
 
+// Fails the test for every key of `section` (a stages: mapping) that `reference` (the
+// stages: mapping of config/defaults.yaml) does not know.
+void expect_known_options(const YAML::Node& section, const YAML::Node& reference,
+                          const std::string& path) {
+  for (const auto& kv : section) {
+    const std::string key = kv.first.as<std::string>();
+    EXPECT_TRUE(reference[key].IsDefined()) << path << "." << key << " is not an option";
+    if (reference[key].IsDefined() && kv.second.IsMap() && reference[key].IsMap()) {
+      expect_known_options(kv.second, reference[key], path + "." + key);
+    }
+  }
+}
+
+YAML::Node committed_defaults() {
+  return YAML::LoadFile((fs::path(FOURD_SOURCE_DIR) / "config" / "defaults.yaml").string());
+}
+
 // Every preset under config/presets/ is a valid preset: a session using it opens, and each
 // section names a stage section that config/defaults.yaml knows, with keys it knows.
 TEST(DefaultsFile, PresetsNameOnlyKnownOptions) {
   const fs::path config = fs::path(FOURD_SOURCE_DIR) / "config";
-  YAML::Node defaults = YAML::LoadFile((config / "defaults.yaml").string());
-  std::function<void(const YAML::Node&, const YAML::Node&, const std::string&)> known =
-      [&](const YAML::Node& preset, const YAML::Node& reference, const std::string& path) {
-        for (const auto& kv : preset) {
-          const std::string key = kv.first.as<std::string>();
-          ASSERT_TRUE(reference[key].IsDefined()) << path << "." << key << " is not an option";
-          if (kv.second.IsMap() && reference[key].IsMap()) {
-            known(kv.second, reference[key], path + "." + key);
-          }
-        }
-      };
+  const YAML::Node defaults = committed_defaults();
   int count = 0;
   for (const auto& entry : fs::directory_iterator(config / "presets")) {
     if (entry.path().extension() != ".yaml") continue;
     ++count;
     YAML::Node preset = YAML::LoadFile(entry.path().string());
-    known(preset["stages"], defaults["stages"], entry.path().filename().string() + ": stages");
+    expect_known_options(preset["stages"], defaults["stages"],
+                         entry.path().filename().string() + ": stages");
   }
   EXPECT_GT(count, 0);
+}
+
+// The sessions shipped with the repository (the default sample, the tiny one, the studio
+// variants) open and set only options the stages have.
+TEST(DefaultsFile, ShippedSessionsOpenAndSetOnlyKnownOptions) {
+  const fs::path samples = fs::path(FOURD_SOURCE_DIR) / "sample_capture";
+  std::vector<fs::path> sessions = {samples, samples / "tiny"};
+  for (const auto& entry : fs::directory_iterator(samples / "variants")) {
+    if (fs::exists(entry.path() / "session.yaml")) sessions.push_back(entry.path());
+  }
+  EXPECT_GE(sessions.size(), 9u);
+  const YAML::Node defaults = committed_defaults();
+  for (const fs::path& dir : sessions) {
+    EXPECT_NO_THROW(Session::open(dir)) << dir;
+    YAML::Node config = YAML::LoadFile((dir / "session.yaml").string());
+    expect_known_options(config["stages"], defaults["stages"], dir.string() + ": stages");
+  }
 }
 
 }  // namespace
