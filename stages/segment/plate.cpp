@@ -37,6 +37,38 @@ double median(std::vector<float>& v) {
   return *mid;
 }
 
+// Pixels where the frame hides the plate's texture: over a kTextureWindow window the plate's
+// brightness spreads by more than kTextureSpread noise levels and the frame's correlates with
+// it by less than kTextureCorrelation. 0/255.
+constexpr int kTextureWindow = 7;
+constexpr double kTextureSpread = 4.0;
+constexpr double kTextureCorrelation = 0.5;
+cv::Mat shadow_texture_hidden(const cv::Mat& bgr, const cv::Mat& plate_mean, float sigma) {
+  cv::Mat f, b;
+  cv::cvtColor(bgr, f, cv::COLOR_BGR2GRAY);
+  f.convertTo(f, CV_32F);
+  cv::cvtColor(plate_mean, b, cv::COLOR_BGR2GRAY);
+  const cv::Size k(kTextureWindow, kTextureWindow);
+  cv::Mat mf, mb, mff, mbb, mfb;
+  cv::boxFilter(f, mf, CV_32F, k);
+  cv::boxFilter(b, mb, CV_32F, k);
+  cv::boxFilter(f.mul(f), mff, CV_32F, k);
+  cv::boxFilter(b.mul(b), mbb, CV_32F, k);
+  cv::boxFilter(f.mul(b), mfb, CV_32F, k);
+  cv::Mat hidden = cv::Mat::zeros(bgr.size(), CV_8U);
+  const float min_var = static_cast<float>(kTextureSpread * kTextureSpread) * sigma * sigma;
+  for (int r = 0; r < bgr.rows; ++r) {
+    for (int c = 0; c < bgr.cols; ++c) {
+      const float vb = mbb.at<float>(r, c) - mb.at<float>(r, c) * mb.at<float>(r, c);
+      if (vb < min_var) continue;
+      const float vf = mff.at<float>(r, c) - mf.at<float>(r, c) * mf.at<float>(r, c);
+      const float cov = mfb.at<float>(r, c) - mf.at<float>(r, c) * mb.at<float>(r, c);
+      if (cov < kTextureCorrelation * std::sqrt(std::max(vf, 0.f) * vb)) hidden.at<std::uint8_t>(r, c) = 255;
+    }
+  }
+  return hidden;
+}
+
 }  // namespace
 
 PlateModel learn_plate(const std::vector<cv::Mat>& plates, const std::string& camera) {
@@ -146,7 +178,12 @@ cv::Mat plate_silhouette(const cv::Mat& bgr, const PlateModel& plate,
   const float mid = static_cast<float>(0.5 * (kSureBackground + kSureForeground));
   cv::Mat shade_only = cv::Mat::zeros(bgr.size(), CV_8U);
   const bool shadows_anywhere = plate.shadow_region.empty();
+  // A shadow darkens the plate's texture, which shows through it; the performer hides it. Per
+  // pixel, the correlation of the frame's and the plate's brightness over a small window,
+  // where the plate has texture to correlate (spread above the noise).
+  cv::Mat texture_hidden = shadow_texture_hidden(bgr, plate.mean, sigma);
   for (int r = 0; r < bgr.rows; ++r) {
+    const std::uint8_t* hidden = texture_hidden.ptr<std::uint8_t>(r);
     const cv::Vec3b* in = bgr.ptr<cv::Vec3b>(r);
     const cv::Vec3f* m = plate.mean.ptr<cv::Vec3f>(r);
     const std::uint8_t* may_shade = shadows_anywhere ? nullptr : plate.shadow_region.ptr<std::uint8_t>(r);
@@ -161,7 +198,8 @@ cv::Mat plate_silhouette(const cv::Mat& bgr, const PlateModel& plate,
       const float bb = B.dot(B);
       const float alpha = bb > 1.0f ? col.dot(B) / bb : 1.0f;
       const float norm_b = std::sqrt(bb);
-      const float darkest = !may_shade || may_shade[c] ? static_cast<float>(kShadowDarkest) : 1.0f;
+      const float darkest = (!may_shade || may_shade[c]) && !hidden[c]
+                                ? static_cast<float>(kShadowDarkest) : 1.0f;
       const float shade = std::clamp(alpha, darkest, 1.0f);
       const float off_chroma = static_cast<float>(
           std::max(0.0, cv::norm(col - alpha * B) - kChromaSlack * alpha * norm_b));

@@ -6,7 +6,9 @@
 // kShadowDarkest but of the plate's chromaticity is background, where a shadow of the
 // performer can fall: on the floor (z = 0, the session's convention) around the rig's centre.
 // Elsewhere (walls, furniture, the floor far away) a darker pixel is the performer: dark clothes
-// over a grey wall are not taken for a shadow.
+// over a grey wall are not taken for a shadow. Nor is a darker pixel whose neighbourhood hides
+// the plate's texture (the frame does not correlate with the plate there): a shadow lets the
+// floor's pattern show through, trousers do not.
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 #include <string>

@@ -186,6 +186,24 @@ TEST(SegmentPlate, ShadowsOnlyWhereTheFloorCanTakeThem) {
   EXPECT_LT(cv::countNonZero(a(coat)), coat.area() / 10) << "shadows anywhere: the coat is lost";
   EXPECT_GT(cv::countNonZero(f(coat)), coat.area() * 95 / 100);
   EXPECT_LT(cv::countNonZero(f(shadow)), shadow.area() / 100) << "the floor's shadow is foreground";
+
+  // Over the tiled floor, grey trousers as dark as a shadow hide the tiles' edges, which a
+  // (soft-edged) shadow lets show through: where the tiles have edges to hide, the performer.
+  cv::Mat frame2;
+  cv::Mat light(kH, kW, CV_32F, cv::Scalar(1.0));
+  light(shadow).setTo(0.45);
+  cv::GaussianBlur(light, light, cv::Size(0, 0), 2.0);
+  cv::Mat light3;
+  cv::merge(std::vector<cv::Mat>{light, light, light}, light3);
+  empty.convertTo(frame2, CV_32FC3);
+  frame2 = frame2.mul(light3);
+  frame2.convertTo(frame2, CV_8UC3);
+  const cv::Rect trousers(14, 92, 32, 26);
+  frame2(trousers).setTo(cv::mean(empty(trousers)) * 0.5);
+  add_noise(frame2, rng, 2.0);
+  const cv::Mat t = plate_silhouette(frame2, floor_only, SegmentOptions{});
+  EXPECT_GT(cv::countNonZero(t(trousers)), trousers.area() / 2);
+  EXPECT_LT(cv::countNonZero(t(shadow)), shadow.area() / 100) << "the floor's shadow is foreground";
 }
 
 // The floor region of a camera of the ring: the floor under the rig's centre is in it, the wall
