@@ -1,10 +1,13 @@
 #include "runtime/gltf_export.h"
 
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <map>
 #include <set>
 
@@ -65,7 +68,164 @@ void add_float3(std::vector<float>* out, const Eigen::Vector3f& v) {
   out->insert(out->end(), {v.x(), v.y(), v.z()});
 }
 
+// The texture as the options ask: the PNG as given, or resized and re-encoded. Returns the bytes
+// and their MIME type.
+std::pair<std::vector<unsigned char>, std::string> texture_bytes(
+    const std::string& file, const std::vector<unsigned char>& png, const GlbOptions& options) {
+  if (options.texture_size == 0 && options.texture_format == "png") return {png, "image/png"};
+  cv::Mat image = cv::imdecode(png, cv::IMREAD_UNCHANGED);
+  if (image.empty()) throw InputError(fmt::format("{}: the texture is not a readable image", file));
+  if (options.texture_size > 0) {
+    const double scale = static_cast<double>(options.texture_size) / std::max(image.cols, image.rows);
+    const cv::Size size(std::max(1, static_cast<int>(std::lround(image.cols * scale))),
+                        std::max(1, static_cast<int>(std::lround(image.rows * scale))));
+    cv::resize(image, image, size, 0, 0, scale < 1 ? cv::INTER_AREA : cv::INTER_LINEAR);
+  }
+  std::vector<unsigned char> bytes;
+  std::string extension = ".png", mime = "image/png";
+  std::vector<int> params;
+  if (options.texture_format == "jpeg") {
+    extension = ".jpg";
+    mime = "image/jpeg";
+    params = {cv::IMWRITE_JPEG_QUALITY, options.texture_quality};
+  } else if (options.texture_format == "webp") {
+    extension = ".webp";
+    mime = "image/webp";
+    params = {cv::IMWRITE_WEBP_QUALITY, options.texture_quality};
+  }
+  if (!cv::imencode(extension, image, bytes, params))
+    throw IoError(fmt::format("{}: cannot encode the texture as {}", file, options.texture_format));
+  return {std::move(bytes), mime};
+}
+
+// The position grid of a compressed export (glTF axes): q = round((p - centre) / step), the
+// template's positions and every frame's displacements on it, in 16-bit integers.
+struct PositionGrid {
+  Eigen::Vector3f centre = Eigen::Vector3f::Zero();
+  float step = 1;
+};
+
+PositionGrid position_grid(const MeshAnimation& animation, const std::vector<int>& source,
+                           double step_mm) {
+  Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::infinity());
+  Eigen::Vector3f hi = -lo;
+  for (const int v : source) {
+    const Eigen::Vector3f p = gltf::to_gltf(animation.base.positions[v]);
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  PositionGrid grid;
+  grid.centre = 0.5f * (lo + hi);
+  float range = 0.5f * (hi - lo).maxCoeff();
+  for (const MeshClip& clip : animation.clips)
+    for (const std::vector<Vec3f>& frame : clip.positions)
+      for (const int v : source)
+        range = std::max(range, (frame[v] - animation.base.positions[v]).cwiseAbs().maxCoeff());
+  grid.step = std::max(static_cast<float>(step_mm * 1e-3), range / 32767.0f);
+  return grid;
+}
+
+std::int16_t grid_int(float value, float step) {
+  return static_cast<std::int16_t>(std::clamp(std::lround(value / step), -32767L, 32767L));
+}
+
+std::int8_t normal_int(float value) {
+  return static_cast<std::int8_t>(std::lround(127 * std::clamp(value, -1.0f, 1.0f)));
+}
+
+// Positions (padded to 8 bytes) on the grid, relative to `origin` (the centre for the template,
+// zero for displacements).
+std::vector<std::int16_t> grid_positions(const std::vector<Eigen::Vector3f>& points,
+                                         const Eigen::Vector3f& origin, float step) {
+  std::vector<std::int16_t> q;
+  q.reserve(4 * points.size());
+  for (const Eigen::Vector3f& p : points) {
+    const Eigen::Vector3f d = p - origin;
+    q.insert(q.end(), {grid_int(d.x(), step), grid_int(d.y(), step), grid_int(d.z(), step), 0});
+  }
+  return q;
+}
+
+// Normals (or displacements, clamped to [-1, 1]) as normalised bytes, padded to 4 bytes.
+std::vector<std::int8_t> byte_normals(const std::vector<Eigen::Vector3f>& normals) {
+  std::vector<std::int8_t> q;
+  q.reserve(4 * normals.size());
+  for (const Eigen::Vector3f& n : normals)
+    q.insert(q.end(), {normal_int(n.x()), normal_int(n.y()), normal_int(n.z()), 0});
+  return q;
+}
+
+constexpr int kArray = TINYGLTF_TARGET_ARRAY_BUFFER;
+
+// The compressed template primitive: quantised POSITION (on `grid`), NORMAL, TEXCOORD_0 and
+// the indices, every view meshopt-compressed.
+tinygltf::Primitive add_quantised_primitive(gltf::BufferWriter& buffer, const Mesh& mesh,
+                                            bool with_uvs, const gltf::ExportVertices& vertices,
+                                            const PositionGrid& grid) {
+  std::vector<Eigen::Vector3f> positions, normals;
+  std::vector<std::uint16_t> uvs;
+  for (std::size_t i = 0; i < vertices.source.size(); ++i) {
+    const int v = vertices.source[i];
+    positions.push_back(gltf::to_gltf(mesh.positions[v]));
+    normals.push_back(gltf::to_gltf(mesh.normals[v]));
+    if (with_uvs) {
+      const Vec2f& uv = mesh.uvs[vertices.uv[i]];
+      for (const float c : {uv.x(), 1.0f - uv.y()})
+        uvs.push_back(static_cast<std::uint16_t>(std::lround(65535 * std::clamp(c, 0.0f, 1.0f))));
+    }
+  }
+  const std::size_t n = vertices.source.size();
+  tinygltf::Primitive primitive;
+  primitive.mode = TINYGLTF_MODE_TRIANGLES;
+  primitive.attributes["POSITION"] = buffer.add_meshopt_accessor(
+      grid_positions(positions, grid.centre, grid.step), n, 8, TINYGLTF_COMPONENT_TYPE_SHORT,
+      TINYGLTF_TYPE_VEC3, kArray, false, true);
+  primitive.attributes["NORMAL"] =
+      buffer.add_meshopt_accessor(byte_normals(normals), n, 4, TINYGLTF_COMPONENT_TYPE_BYTE,
+                                  TINYGLTF_TYPE_VEC3, kArray, true);
+  if (with_uvs)
+    primitive.attributes["TEXCOORD_0"] =
+        buffer.add_meshopt_accessor(uvs, n, 4, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT,
+                                    TINYGLTF_TYPE_VEC2, kArray, true);
+  const std::size_t count = 3 * vertices.triangles.size();
+  if (n <= 65536) {
+    std::vector<std::uint16_t> indices;
+    for (const Tri& t : vertices.triangles)
+      for (int c = 0; c < 3; ++c) indices.push_back(static_cast<std::uint16_t>(t[c]));
+    primitive.indices = buffer.add_meshopt_accessor(
+        indices, count, 2, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT, TINYGLTF_TYPE_SCALAR,
+        TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER, false, false, gltf::MeshoptMode::kTriangles);
+  } else {
+    std::vector<std::uint32_t> indices;
+    for (const Tri& t : vertices.triangles)
+      for (int c = 0; c < 3; ++c) indices.push_back(static_cast<std::uint32_t>(t[c]));
+    primitive.indices = buffer.add_meshopt_accessor(
+        indices, count, 4, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR,
+        TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER, false, false, gltf::MeshoptMode::kTriangles);
+  }
+  return primitive;
+}
+
 }  // namespace
+
+gltf::ExportVertices glb_vertices(const Mesh& base, const GlbOptions& options) {
+  gltf::ExportVertices vertices = gltf::export_vertices(base);
+  if (options.compress) gltf::order_for_compression(&vertices);
+  return vertices;
+}
+
+void GlbOptions::check() const {
+  if (!(position_step_mm >= 0.001 && position_step_mm <= 10))
+    throw UsageError(
+        fmt::format("--position-step {} mm: must lie in [0.001, 10]", position_step_mm));
+  if (texture_size < 0 || texture_size > 16384)
+    throw UsageError(fmt::format("--texture-size {}: must lie in [0, 16384]", texture_size));
+  if (texture_format != "png" && texture_format != "jpeg" && texture_format != "webp")
+    throw UsageError(
+        fmt::format("--texture-format {}: expected png, jpeg or webp", texture_format));
+  if (texture_quality < 1 || texture_quality > 100)
+    throw UsageError(fmt::format("--texture-quality {}: must lie in [1, 100]", texture_quality));
+}
 
 Mesh asset_template(const Asset& asset) {
   if (asset.graph.spaces.empty()) throw InputError("the asset has no motion space");
@@ -165,11 +325,14 @@ MeshClip bake_control_script(const Asset& asset, const ControlScript& script,
   return clip;
 }
 
-void write_mesh_animation_glb(const std::filesystem::path& path, const MeshAnimation& animation) {
+void write_mesh_animation_glb(const std::filesystem::path& path, const MeshAnimation& animation,
+                              const GlbOptions& options) {
   const std::string file = path.string();
+  options.check();
   check_animation(file, animation);
   const Mesh& base = animation.base;
   const bool textured = !base.uvs.empty() && !animation.texture_png.empty();
+  const bool compress = options.compress;
 
   tinygltf::Model model;
   model.asset.version = "2.0";
@@ -181,34 +344,70 @@ void write_mesh_animation_glb(const std::filesystem::path& path, const MeshAnima
   for (Vec3f& n : unit_base.normals) n = unit_normal(n);
   const std::vector<Vec3f>& base_normals = unit_base.normals;
   gltf::ExportVertices vertices;
-  tinygltf::Primitive primitive = gltf::add_mesh_primitive(buffer, unit_base, textured, &vertices);
+  tinygltf::Primitive primitive;
+  PositionGrid grid;
+  if (compress) {
+    vertices = glb_vertices(unit_base, options);
+    grid = position_grid(animation, vertices.source, options.position_step_mm);
+    primitive = add_quantised_primitive(buffer, unit_base, textured, vertices, grid);
+    model.extensionsUsed.push_back("KHR_mesh_quantization");
+    model.extensionsRequired.push_back("KHR_mesh_quantization");
+  } else {
+    primitive = gltf::add_mesh_primitive(buffer, unit_base, textured, &vertices);
+  }
 
   tinygltf::Material material;
   material.name = "performer";
   material.pbrMetallicRoughness.metallicFactor = 0;
   material.pbrMetallicRoughness.roughnessFactor = 1;
-  if (textured)
-    material.pbrMetallicRoughness.baseColorTexture.index =
-        buffer.add_png_texture(animation.texture_png, "texture");
+  if (textured) {
+    const auto [bytes, mime] = texture_bytes(file, animation.texture_png, options);
+    const int texture = buffer.add_image_texture(bytes, mime, "texture");
+    if (mime == "image/webp") {
+      tinygltf::Texture& t = model.textures[texture];
+      tinygltf::Value::Object webp;
+      webp["source"] = tinygltf::Value(t.source);
+      t.extensions["EXT_texture_webp"] = tinygltf::Value(std::move(webp));
+      t.source = -1;
+      model.extensionsUsed.push_back("EXT_texture_webp");
+      model.extensionsRequired.push_back("EXT_texture_webp");
+    }
+    material.pbrMetallicRoughness.baseColorTexture.index = texture;
+  }
   model.materials.push_back(material);
   primitive.material = 0;
 
   // One morph target per frame of every clip: its displacement from the template.
   tinygltf::Value::Array target_names;
+  const std::size_t n = vertices.source.size();
   for (const MeshClip& clip : animation.clips) {
     for (int f = 0; f < clip.num_frames(); ++f) {
-      std::vector<float> dp, dn;
-      dp.reserve(3 * vertices.source.size());
-      dn.reserve(3 * vertices.source.size());
-      for (const int v : vertices.source) {
-        add_float3(&dp, gltf::to_gltf(Vec3f(clip.positions[f][v] - base.positions[v])));
-        add_float3(&dn, gltf::to_gltf(Vec3f(unit_normal(clip.normals[f][v]) - base_normals[v])));
-      }
       std::map<std::string, int> target;
-      constexpr int kArray = TINYGLTF_TARGET_ARRAY_BUFFER;
       constexpr int kFloat = TINYGLTF_COMPONENT_TYPE_FLOAT;
-      target["POSITION"] = buffer.add_accessor(dp, kFloat, TINYGLTF_TYPE_VEC3, kArray, true);
-      target["NORMAL"] = buffer.add_accessor(dn, kFloat, TINYGLTF_TYPE_VEC3, kArray);
+      if (compress) {
+        std::vector<Eigen::Vector3f> dp, dn;
+        dp.reserve(n);
+        dn.reserve(n);
+        for (const int v : vertices.source) {
+          dp.push_back(gltf::to_gltf(Vec3f(clip.positions[f][v] - base.positions[v])));
+          dn.push_back(gltf::to_gltf(Vec3f(unit_normal(clip.normals[f][v]) - base_normals[v])));
+        }
+        target["POSITION"] = buffer.add_meshopt_accessor(
+            grid_positions(dp, Eigen::Vector3f::Zero(), grid.step), n, 8,
+            TINYGLTF_COMPONENT_TYPE_SHORT, TINYGLTF_TYPE_VEC3, kArray, false, true);
+        target["NORMAL"] = buffer.add_meshopt_accessor(
+            byte_normals(dn), n, 4, TINYGLTF_COMPONENT_TYPE_BYTE, TINYGLTF_TYPE_VEC3, kArray, true);
+      } else {
+        std::vector<float> dp, dn;
+        dp.reserve(3 * n);
+        dn.reserve(3 * n);
+        for (const int v : vertices.source) {
+          add_float3(&dp, gltf::to_gltf(Vec3f(clip.positions[f][v] - base.positions[v])));
+          add_float3(&dn, gltf::to_gltf(Vec3f(unit_normal(clip.normals[f][v]) - base_normals[v])));
+        }
+        target["POSITION"] = buffer.add_accessor(dp, kFloat, TINYGLTF_TYPE_VEC3, kArray, true);
+        target["NORMAL"] = buffer.add_accessor(dn, kFloat, TINYGLTF_TYPE_VEC3, kArray);
+      }
       primitive.targets.push_back(std::move(target));
       target_names.emplace_back(fmt::format("{}.{:04d}", clip.name, f));
     }
@@ -225,10 +424,25 @@ void write_mesh_animation_glb(const std::filesystem::path& path, const MeshAnima
   mesh.extras = tinygltf::Value(std::move(extras));
   model.meshes.push_back(std::move(mesh));
 
+  // The root motion animates node 0; the mesh hangs on it, or (compressed) on a static child
+  // node that dequantises the positions.
   tinygltf::Node node;
   node.name = animation.name.empty() ? "character" : animation.name;
-  node.mesh = 0;
-  model.nodes.push_back(node);
+  int mesh_node = 0;
+  if (compress) {
+    node.children = {1};
+    model.nodes.push_back(node);
+    tinygltf::Node quantised;
+    quantised.name = node.name + "_mesh";
+    quantised.mesh = 0;
+    quantised.translation = {grid.centre.x(), grid.centre.y(), grid.centre.z()};
+    quantised.scale = {grid.step, grid.step, grid.step};
+    model.nodes.push_back(quantised);
+    mesh_node = 1;
+  } else {
+    node.mesh = 0;
+    model.nodes.push_back(node);
+  }
   tinygltf::Scene scene;
   scene.name = node.name;
   scene.nodes = {0};
@@ -242,11 +456,15 @@ void write_mesh_animation_glb(const std::filesystem::path& path, const MeshAnima
     tinygltf::Animation anim;
     anim.name = clip.name;
     const int input =
-        buffer.add_accessor(clip.times, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR, 0,
-                            /*with_bounds=*/true);
+        compress ? buffer.add_meshopt_accessor(clip.times, clip.times.size(), sizeof(float),
+                                               TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR,
+                                               0, false, /*with_bounds=*/true)
+                 : buffer.add_accessor(clip.times, TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                       TINYGLTF_TYPE_SCALAR, 0, /*with_bounds=*/true);
     std::vector<float> weights(static_cast<std::size_t>(frames) * num_targets, 0.0f);
     for (int f = 0; f < frames; ++f) weights[f * num_targets + first_target + f] = 1;
-    gltf::add_linear_channel(&anim, buffer, input, 0, "weights", weights, TINYGLTF_TYPE_SCALAR);
+    gltf::add_linear_channel(&anim, buffer, input, mesh_node, "weights", weights,
+                             TINYGLTF_TYPE_SCALAR, compress);
     std::vector<float> translations;
     std::vector<Eigen::Quaterniond> rotations;
     for (const RootTransform& root : clip.roots) {
@@ -255,13 +473,13 @@ void write_mesh_animation_glb(const std::filesystem::path& path, const MeshAnima
       rotations.emplace_back(Eigen::AngleAxisd(root.heading, Eigen::Vector3d::UnitZ()));
     }
     gltf::add_linear_channel(&anim, buffer, input, 0, "translation", translations,
-                             TINYGLTF_TYPE_VEC3);
+                             TINYGLTF_TYPE_VEC3, compress);
     gltf::add_linear_channel(&anim, buffer, input, 0, "rotation", gltf::rotation_keys(rotations),
-                             TINYGLTF_TYPE_VEC4);
+                             TINYGLTF_TYPE_VEC4, compress);
     model.animations.push_back(std::move(anim));
     first_target += frames;
   }
-  gltf::write_glb(path, model);
+  gltf::write_glb(path, model, buffer.meshopt_views());
 }
 
 }  // namespace fourd

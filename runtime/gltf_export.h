@@ -23,12 +23,25 @@
 // keys are its output frames (1 / fps apart).
 //
 // Texture: when the template has UVs (Mesh::uvs, per vertex or per corner) and `texture_png`
-// holds an image, TEXCOORD_0 (split at UV seams) and a baseColor texture are written.
+// holds an image, TEXCOORD_0 (split at UV seams) and a baseColor texture are written (as the
+// PNG it is, or re-encoded at another size or as JPEG / WebP: GlbOptions).
+//
+// Compression (GlbOptions::compress): every vertex stream, index buffer and animation key array
+// is compressed with meshoptimizer's codecs (EXT_meshopt_compression, required), and the vertex
+// data is quantised (KHR_mesh_quantization, required): positions and morph target position
+// displacements as 16-bit integers on one grid of step `position_step_mm` (larger when the
+// template's half-extent or the largest displacement would need more than 32,767 steps),
+// dequantised by the mesh node's translation (the template's bounding-box centre) and uniform
+// scale (the step), so a decoded vertex is within step * sqrt(3) of the exact one (half a step
+// per component from the template, half from the displacement); normals and normal displacements as normalised 8-bit integers (displacements clamped
+// to [-1, 1]); UVs as normalised 16-bit integers. The root motion then animates a parent node
+// of the mesh node, so the node carrying the dequantisation stays static.
 #include <filesystem>
 #include <string>
 #include <vector>
 
 #include "pipeline/core/mesh.h"
+#include "pipeline/gltf/gltf.h"
 #include "runtime/asset.h"
 #include "runtime/character.h"
 #include "runtime/player.h"
@@ -68,9 +81,25 @@ std::vector<unsigned char> asset_template_texture_png(const Asset& asset);
 MeshClip bake_control_script(const Asset& asset, const ControlScript& script,
                              PlayerOptions options, const std::string& name);
 
+struct GlbOptions {
+  bool compress = false;   // EXT_meshopt_compression + KHR_mesh_quantization (see above)
+  double position_step_mm = 0.4;  // grid step of the quantised positions [mm], 0.001..10
+  int texture_size = 0;    // > 0: the texture's longer side is resized to this many pixels
+  std::string texture_format = "png";  // png | jpeg | webp (EXT_texture_webp, required)
+  int texture_quality = 90;            // jpeg / webp quality, 1..100
+  // Throws UsageError naming the option.
+  void check() const;
+};
+
+// The vertices as the .glb stores them (which template vertex and UV each copies, and the
+// triangles over them): split at UV seams and, compressed, reordered for the codecs.
+gltf::ExportVertices glb_vertices(const Mesh& base, const GlbOptions& options);
+
 // Writes `animation` as a .glb, atomically. Throws InputError naming the file for an
 // inconsistent animation (sizes, times, clip names not unique), IoError when it cannot be
-// written.
-void write_mesh_animation_glb(const std::filesystem::path& path, const MeshAnimation& animation);
+// written. With the default options the file is the plain one (float attributes, the PNG as
+// given).
+void write_mesh_animation_glb(const std::filesystem::path& path, const MeshAnimation& animation,
+                              const GlbOptions& options = {});
 
 }  // namespace fourd

@@ -7,7 +7,7 @@ PACKAGES=(
   build-essential cmake ninja-build ccache pkg-config git python3
   libeigen3-dev libopencv-dev libcgal-dev libopenmesh-dev libembree-dev
   libopenimageio-dev openimageio-tools libyaml-cpp-dev nlohmann-json3-dev libcli11-dev
-  libtbb-dev libfmt-dev libxxhash-dev libtinygltf-dev libsqlite3-dev
+  libtbb-dev libfmt-dev libxxhash-dev libtinygltf-dev libmeshoptimizer-dev libsqlite3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libglfw3-dev libimgui-dev libepoxy-dev xvfb xauth libgl1-mesa-dri
   clang libclang-rt-14-dev
@@ -15,6 +15,7 @@ PACKAGES=(
   snakemake
   ffmpeg
   nodejs
+  blender chromium  # real glTF clients the export tests open the .glb in
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

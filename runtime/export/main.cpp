@@ -23,6 +23,7 @@ int main(int argc, char** argv) {
                "fourd-export"};
   std::string asset_path, out_path, script_path, clip_name;
   PlayerOptions player;
+  GlbOptions glb;
   bool verbose = false;
   app.add_option("asset", asset_path, "the asset file (motion_graph.fourd)")->required();
   app.add_option("-o,--out", out_path, "the .glb to write")->required();
@@ -35,11 +36,26 @@ int main(int argc, char** argv) {
   app.add_option("--duration", player.duration, "seconds of the script to bake (default: the "
                  "script's)")
       ->check(CLI::NonNegativeNumber);
+  app.add_flag("--compress", glb.compress,
+               "compress: EXT_meshopt_compression and quantised vertices (KHR_mesh_quantization); "
+               "a viewer needs meshoptimizer's decoder (three.js: MeshoptDecoder)");
+  app.add_option("--position-step", glb.position_step_mm,
+                 "with --compress: grid step of the quantised positions [mm]; a decoded vertex "
+                 "is within step * sqrt(3) of the exact one")
+      ->capture_default_str();
+  app.add_option("--texture-size", glb.texture_size,
+                 "resize the texture so its longer side has this many pixels (0: as is)")
+      ->capture_default_str();
+  app.add_option("--texture-format", glb.texture_format, "png | jpeg | webp (EXT_texture_webp)")
+      ->capture_default_str();
+  app.add_option("--texture-quality", glb.texture_quality, "jpeg / webp quality (1..100)")
+      ->capture_default_str();
   app.add_flag("-v,--verbose", verbose, "debug messages");
   if (const auto code = parse_command_line(app, argc, argv)) return *code;
   if (verbose) log::set_level(log::Level::kDebug);
   return run_guarded("fourd-export", [&]() -> int {
     log::Timer timer;
+    glb.check();
     // An output folder that cannot be made fails now, not after the work.
     const std::filesystem::path out_dir = std::filesystem::path(out_path).parent_path();
     if (!out_dir.empty()) ensure_directory(out_dir);
@@ -57,10 +73,11 @@ int main(int argc, char** argv) {
     }
     int frames = 0;
     for (const MeshClip& clip : animation.clips) frames += clip.num_frames();
-    write_mesh_animation_glb(out_path, animation);
-    log::info("{}: {} vertices, {} clips, {} morph targets, {}, {:.1f} MB in {:.1f} s", out_path,
-              animation.base.num_vertices(), animation.clips.size(), frames,
+    write_mesh_animation_glb(out_path, animation, glb);
+    log::info("{}: {} vertices, {} clips, {} morph targets, {}{}, {:.1f} MB in {:.1f} s",
+              out_path, animation.base.num_vertices(), animation.clips.size(), frames,
               animation.texture_png.empty() ? "no texture" : "textured",
+              glb.compress ? ", compressed" : "",
               std::filesystem::file_size(out_path) / 1e6, timer.seconds());
     return kExitOk;
   });
