@@ -68,34 +68,14 @@ void add_float3(std::vector<float>* out, const Eigen::Vector3f& v) {
   out->insert(out->end(), {v.x(), v.y(), v.z()});
 }
 
-// The texture as the options ask: the PNG as given, or resized and re-encoded. Returns the bytes
-// and their MIME type.
-std::pair<std::vector<unsigned char>, std::string> texture_bytes(
-    const std::string& file, const std::vector<unsigned char>& png, const GlbOptions& options) {
-  if (options.texture_size == 0 && options.texture_format == "png") return {png, "image/png"};
-  cv::Mat image = cv::imdecode(png, cv::IMREAD_UNCHANGED);
+// The texture as the options ask: the PNG as given, or resized and re-encoded.
+std::vector<unsigned char> texture_bytes(const std::string& file,
+                                         const std::vector<unsigned char>& png,
+                                         const TextureEncoding& encoding) {
+  if (encoding.keeps_png()) return png;
+  const cv::Mat image = cv::imdecode(png, cv::IMREAD_COLOR);
   if (image.empty()) throw InputError(fmt::format("{}: the texture is not a readable image", file));
-  if (options.texture_size > 0) {
-    const double scale = static_cast<double>(options.texture_size) / std::max(image.cols, image.rows);
-    const cv::Size size(std::max(1, static_cast<int>(std::lround(image.cols * scale))),
-                        std::max(1, static_cast<int>(std::lround(image.rows * scale))));
-    cv::resize(image, image, size, 0, 0, scale < 1 ? cv::INTER_AREA : cv::INTER_LINEAR);
-  }
-  std::vector<unsigned char> bytes;
-  std::string extension = ".png", mime = "image/png";
-  std::vector<int> params;
-  if (options.texture_format == "jpeg") {
-    extension = ".jpg";
-    mime = "image/jpeg";
-    params = {cv::IMWRITE_JPEG_QUALITY, options.texture_quality};
-  } else if (options.texture_format == "webp") {
-    extension = ".webp";
-    mime = "image/webp";
-    params = {cv::IMWRITE_WEBP_QUALITY, options.texture_quality};
-  }
-  if (!cv::imencode(extension, image, bytes, params))
-    throw IoError(fmt::format("{}: cannot encode the texture as {}", file, options.texture_format));
-  return {std::move(bytes), mime};
+  return encode_texture(image, encoding);
 }
 
 // The position grid of a compressed export (glTF axes): q = round((p - centre) / step), the
@@ -214,17 +194,45 @@ gltf::ExportVertices glb_vertices(const Mesh& base, const GlbOptions& options) {
   return vertices;
 }
 
+std::string TextureEncoding::extension() const {
+  return format == "jpeg" ? ".jpg" : format == "webp" ? ".webp" : ".png";
+}
+
+std::string TextureEncoding::mime_type() const {
+  return format == "jpeg" ? "image/jpeg" : format == "webp" ? "image/webp" : "image/png";
+}
+
+void TextureEncoding::check() const {
+  if (size < 0 || size > 16384)
+    throw UsageError(fmt::format("--texture-size {}: must lie in [0, 16384]", size));
+  if (format != "png" && format != "jpeg" && format != "webp")
+    throw UsageError(fmt::format("--texture-format {}: expected png, jpeg or webp", format));
+  if (quality < 1 || quality > 100)
+    throw UsageError(fmt::format("--texture-quality {}: must lie in [1, 100]", quality));
+}
+
+std::vector<unsigned char> encode_texture(const cv::Mat& input, const TextureEncoding& encoding) {
+  cv::Mat image = input;
+  if (encoding.size > 0) {
+    const double scale = static_cast<double>(encoding.size) / std::max(image.cols, image.rows);
+    const cv::Size size(std::max(1, static_cast<int>(std::lround(image.cols * scale))),
+                        std::max(1, static_cast<int>(std::lround(image.rows * scale))));
+    cv::resize(image, image, size, 0, 0, scale < 1 ? cv::INTER_AREA : cv::INTER_LINEAR);
+  }
+  std::vector<int> params;
+  if (encoding.format == "jpeg") params = {cv::IMWRITE_JPEG_QUALITY, encoding.quality};
+  if (encoding.format == "webp") params = {cv::IMWRITE_WEBP_QUALITY, encoding.quality};
+  std::vector<unsigned char> bytes;
+  if (!cv::imencode(encoding.extension(), image, bytes, params))
+    throw IoError(fmt::format("cannot encode a texture as {}", encoding.format));
+  return bytes;
+}
+
 void GlbOptions::check() const {
   if (!(position_step_mm >= 0.001 && position_step_mm <= 10))
     throw UsageError(
         fmt::format("--position-step {} mm: must lie in [0.001, 10]", position_step_mm));
-  if (texture_size < 0 || texture_size > 16384)
-    throw UsageError(fmt::format("--texture-size {}: must lie in [0, 16384]", texture_size));
-  if (texture_format != "png" && texture_format != "jpeg" && texture_format != "webp")
-    throw UsageError(
-        fmt::format("--texture-format {}: expected png, jpeg or webp", texture_format));
-  if (texture_quality < 1 || texture_quality > 100)
-    throw UsageError(fmt::format("--texture-quality {}: must lie in [1, 100]", texture_quality));
+  texture.check();
 }
 
 Mesh asset_template(const Asset& asset) {
@@ -273,7 +281,9 @@ std::vector<unsigned char> asset_template_texture_png(const Asset& asset) {
 
 std::vector<MeshClip> asset_take_clips(const Asset& asset) {
   std::vector<MeshClip> clips;
-  for (const GraphSpace& space : asset.graph.spaces) {
+  for (int space_index = 0; space_index < static_cast<int>(asset.graph.spaces.size());
+       ++space_index) {
+    const GraphSpace& space = asset.graph.spaces[space_index];
     const MotionSpace& motion = space.motion;
     const BlendSpace& blend = motion.blend;
     for (int i = 0; i < motion.num_inputs(); ++i) {
@@ -288,6 +298,17 @@ std::vector<MeshClip> asset_take_clips(const Asset& asset) {
             points_from_planes(space.normals_for(frame), blend.plane_stride, blend.num_vertices));
         const RootPose& root = motion.root(i, f);
         clip.roots.push_back({root.x, root.y, root.heading});
+        if (!asset.graph.textures.empty()) {
+          // Take i alone at the sample's normalised time.
+          std::vector<float> w(motion.num_inputs(), 0.0f);
+          w[i] = 1.0f;
+          TextureBlend texture;
+          const double t =
+              blend.num_frames > 1 ? static_cast<double>(f) / (blend.num_frames - 1) : 0.0;
+          texture_blend_add(asset.graph.textures, space_index, motion.cyclic, t, w, 1.0f,
+                            &texture);
+          clip.textures.push_back(texture);
+        }
       }
       clips.push_back(std::move(clip));
     }
@@ -309,6 +330,7 @@ struct ClipRecorder : FrameObserver {
     clip.normals.push_back(points_from_planes(out.normals.data.data(), out.normals.plane_stride,
                                               out.normals.num_vertices));
     clip.roots.push_back(out.root);
+    if (!character.graph().textures.empty()) clip.textures.push_back(out.textures);
   }
   MeshClip& clip;
 };
@@ -361,8 +383,9 @@ void write_mesh_animation_glb(const std::filesystem::path& path, const MeshAnima
   material.pbrMetallicRoughness.metallicFactor = 0;
   material.pbrMetallicRoughness.roughnessFactor = 1;
   if (textured) {
-    const auto [bytes, mime] = texture_bytes(file, animation.texture_png, options);
-    const int texture = buffer.add_image_texture(bytes, mime, "texture");
+    const std::string mime = options.texture.mime_type();
+    const int texture = buffer.add_image_texture(
+        texture_bytes(file, animation.texture_png, options.texture), mime, "texture");
     if (mime == "image/webp") {
       tinygltf::Texture& t = model.textures[texture];
       tinygltf::Value::Object webp;

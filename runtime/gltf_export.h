@@ -36,6 +36,8 @@
 // per component from the template, half from the displacement); normals and normal displacements as normalised 8-bit integers (displacements clamped
 // to [-1, 1]); UVs as normalised 16-bit integers. The root motion then animates a parent node
 // of the mesh node, so the node carrying the dequantisation stays static.
+#include <opencv2/core.hpp>
+
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -45,6 +47,7 @@
 #include "runtime/asset.h"
 #include "runtime/character.h"
 #include "runtime/player.h"
+#include "runtime/textures.h"
 
 namespace fourd {
 
@@ -56,6 +59,7 @@ struct MeshClip {
   std::vector<std::vector<Vec3f>> positions;     // per frame, #V
   std::vector<std::vector<Vec3f>> normals;       // per frame, #V (any length > 0)
   std::vector<RootTransform> roots;              // per frame
+  std::vector<TextureBlend> textures;            // per frame; empty without textures
 
   int num_frames() const { return static_cast<int>(times.size()); }
 };
@@ -81,12 +85,24 @@ std::vector<unsigned char> asset_template_texture_png(const Asset& asset);
 MeshClip bake_control_script(const Asset& asset, const ControlScript& script,
                              PlayerOptions options, const std::string& name);
 
+// How a texture is written: as it is (PNG at its size) or resized and re-encoded.
+struct TextureEncoding {
+  int size = 0;                // > 0: the longer side is resized to this many pixels
+  std::string format = "png";  // png | jpeg | webp (in a .glb: EXT_texture_webp, required)
+  int quality = 90;            // jpeg / webp quality, 1..100
+  bool keeps_png() const { return size == 0 && format == "png"; }
+  std::string extension() const;  // ".png", ".jpg", ".webp"
+  std::string mime_type() const;
+  // Throws UsageError naming the option.
+  void check() const;
+};
+// `image` (8-bit BGR) resized and encoded as `encoding` says; IoError when it cannot be.
+std::vector<unsigned char> encode_texture(const cv::Mat& image, const TextureEncoding& encoding);
+
 struct GlbOptions {
   bool compress = false;   // EXT_meshopt_compression + KHR_mesh_quantization (see above)
   double position_step_mm = 0.4;  // grid step of the quantised positions [mm], 0.001..10
-  int texture_size = 0;    // > 0: the texture's longer side is resized to this many pixels
-  std::string texture_format = "png";  // png | jpeg | webp (EXT_texture_webp, required)
-  int texture_quality = 90;            // jpeg / webp quality, 1..100
+  TextureEncoding texture;
   // Throws UsageError naming the option.
   void check() const;
 };
