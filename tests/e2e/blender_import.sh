@@ -7,16 +7,8 @@
 # EXT_meshopt_compression. Skipped (exit 77) without blender.
 # usage: blender_import.sh <tiny session> <work dir>   (FOURD_BIN: folder of the executables)
 set -euo pipefail
-session="$1"
-work="$2"
-bin="${FOURD_BIN:?FOURD_BIN must name the folder of the fourd executables}"
-here="$(cd "$(dirname "$0")" && pwd)"
-asset="$session/asset/motion_graph.fourd"
-script="$session/play/timeline.txt"
-test -f "$asset" || { echo "no $asset: run the e2e_tiny_sample test first"; exit 1; }
 command -v blender >/dev/null || { echo "SKIP: blender is not installed (scripts/setup.sh installs it)"; exit 77; }
-rm -rf "$work"
-mkdir -p "$work"
+source "$(dirname "$0")/export_common.sh"
 tolerance_mm=0.01
 
 echo "== export, play, sequence"

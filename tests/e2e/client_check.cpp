@@ -12,7 +12,7 @@
 //   client_check camera CALIBRATION N WIDTH HEIGHT OUT.json
 //     Studio camera N of a COLMAP calibration at WIDTH x HEIGHT as three.js needs it: the
 //     OpenGL projection matrix and the camera's world matrix in glTF axes (column-major).
-//   client_check image FOURD.png CLIENT.png MIN_DB
+//   client_check image FOURD.png CLIENT.png MIN_DB [DIFF.png]
 //     PSNR of the client's render (RGBA, the character opaque on a transparent background)
 //     against fourd-play's render of the same frame and camera, over the pixels the client's
 //     character covers; also the PSNR over the whole image after laying the client's
@@ -122,7 +122,8 @@ int camera(const std::string& calibration, int index, int width, int height,
   return kExitOk;
 }
 
-int image(const std::string& ours_path, const std::string& client_path, double min_db) {
+int image(const std::string& ours_path, const std::string& client_path, double min_db,
+          const std::string& diff_path) {
   const cv::Mat ours = cv::imread(ours_path, cv::IMREAD_COLOR);
   const cv::Mat client = cv::imread(client_path, cv::IMREAD_UNCHANGED);
   if (ours.empty() || client.empty() || client.channels() != 4)
@@ -143,6 +144,12 @@ int image(const std::string& ours_path, const std::string& client_path, double m
   const cv::Mat all(ours.size(), CV_8UC1, cv::Scalar(255));
   const double whole = image_error(composite_float, ours, all).psnr_db();
   const double cover = static_cast<double>(cv::countNonZero(mask)) / mask.total();
+  if (!diff_path.empty()) {  // |difference| x 4 over the client's character, for a look
+    cv::Mat diff;
+    cv::absdiff(client_bgr, ours, diff);
+    diff.setTo(cv::Scalar::all(0), ~mask);
+    cv::imwrite(diff_path, diff * 4);
+  }
   fmt::print("{} vs {}: PSNR {:.2f} dB over the client's character ({:.2f}% of the image), "
              "{:.2f} dB over the whole image on fourd's background (threshold {} dB)\n",
              client_path, ours_path, character, 100 * cover, whole, min_db);
@@ -159,7 +166,8 @@ int main(int argc, char** argv) {
     if (a.size() == 4 && a[0] == "meshes") return meshes(a[1], a[2], std::stod(a[3]));
     if (a.size() == 6 && a[0] == "camera")
       return camera(a[1], std::stoi(a[2]), std::stoi(a[3]), std::stoi(a[4]), a[5]);
-    if (a.size() == 4 && a[0] == "image") return image(a[1], a[2], std::stod(a[3]));
+    if ((a.size() == 4 || a.size() == 5) && a[0] == "image")
+      return image(a[1], a[2], std::stod(a[3]), a.size() == 5 ? a[4] : "");
   } catch (const std::exception& e) {
     fmt::print(stderr, "client_check: {}\n", e.what());
     return kExitFailure;
@@ -168,6 +176,6 @@ int main(int argc, char** argv) {
              "usage: client_check positions ASSET PLY CLIENT.json MAX_MM\n"
              "       client_check meshes A.ply B.ply MAX_MM\n"
              "       client_check camera CALIBRATION N WIDTH HEIGHT OUT.json\n"
-             "       client_check image FOURD.png CLIENT.png MIN_DB\n");
+             "       client_check image FOURD.png CLIENT.png MIN_DB [DIFF.png]\n");
   return kExitUsage;
 }

@@ -5,14 +5,7 @@
 # bad requests are refused, and a refused run leaves the previous folder as it was.
 # usage: mesh_sequence.sh <tiny session> <work dir>   (FOURD_BIN: folder of the executables)
 set -euo pipefail
-session="$1"
-work="$2"
-bin="${FOURD_BIN:?FOURD_BIN must name the folder of the fourd executables}"
-asset="$session/asset/motion_graph.fourd"
-script="$session/play/timeline.txt"
-test -f "$asset" || { echo "no $asset: run the e2e_tiny_sample test first"; exit 1; }
-rm -rf "$work"
-mkdir -p "$work"
+source "$(dirname "$0")/export_common.sh"
 
 echo "== script result as PLY"
 "$bin/fourd-export" "$asset" --sequence "$work/timeline" --script "$script" --texture-format jpeg
@@ -53,17 +46,6 @@ for f in 00000 00100 00240; do
 done
 
 echo "== bad requests"
-expect_failure() {  # expected exit code, text the message must contain, command...
-  local code="$1" text="$2"
-  shift 2
-  set +e
-  out=$("$@" 2>&1)
-  status=$?
-  set -e
-  echo "$out"
-  [ "$status" -eq "$code" ] || { echo "exit $status, expected $code"; exit 1; }
-  grep -qF -- "$text" <<< "$out" || { echo "the message does not say '$text'"; exit 1; }
-}
 before=$(ls "$work/walk_fast" | wc -l)
 expect_failure 2 "--take nope" "$bin/fourd-export" "$asset" --sequence "$work/walk_fast" --take nope
 expect_failure 2 "needs one of --take" "$bin/fourd-export" "$asset" --sequence "$work/walk_fast"
