@@ -78,8 +78,8 @@ std::vector<unsigned char> texture_bytes(const std::string& file,
   return encode_texture(image, encoding);
 }
 
-// The position grid of a compressed export (glTF axes): q = round((p - centre) / step), the
-// template's positions and every frame's displacements on it, in 16-bit integers.
+// The position grid of a compressed export (glTF axes): the template's positions as floats
+// (p - centre) / step, every frame's displacements rounded to 16-bit integers on the grid.
 struct PositionGrid {
   Eigen::Vector3f centre = Eigen::Vector3f::Zero();
   float step = 1;
@@ -96,7 +96,7 @@ PositionGrid position_grid(const MeshAnimation& animation, const std::vector<int
   }
   PositionGrid grid;
   grid.centre = 0.5f * (lo + hi);
-  float range = 0.5f * (hi - lo).maxCoeff();
+  float range = 0;
   for (const MeshClip& clip : animation.clips)
     for (const std::vector<Vec3f>& frame : clip.positions)
       for (const int v : source)
@@ -113,8 +113,7 @@ std::int8_t normal_int(float value) {
   return static_cast<std::int8_t>(std::lround(127 * std::clamp(value, -1.0f, 1.0f)));
 }
 
-// Positions (padded to 8 bytes) on the grid, relative to `origin` (the centre for the template,
-// zero for displacements).
+// Points (padded to 8 bytes) on the grid, relative to `origin`.
 std::vector<std::int16_t> grid_positions(const std::vector<Eigen::Vector3f>& points,
                                          const Eigen::Vector3f& origin, float step) {
   std::vector<std::int16_t> q;
@@ -157,9 +156,15 @@ tinygltf::Primitive add_quantised_primitive(gltf::BufferWriter& buffer, const Me
   const std::size_t n = vertices.source.size();
   tinygltf::Primitive primitive;
   primitive.mode = TINYGLTF_MODE_TRIANGLES;
+  // The template in grid units but as floats: exact, so a decoded vertex's error is the
+  // displacement's rounding alone (the template is 12 bytes a vertex once, the displacements 8
+  // a vertex per frame).
+  std::vector<float> grid_template;
+  for (const Eigen::Vector3f& p : positions)
+    add_float3(&grid_template, Eigen::Vector3f((p - grid.centre) / grid.step));
   primitive.attributes["POSITION"] = buffer.add_meshopt_accessor(
-      grid_positions(positions, grid.centre, grid.step), n, 8, TINYGLTF_COMPONENT_TYPE_SHORT,
-      TINYGLTF_TYPE_VEC3, kArray, false, true);
+      grid_template, n, 12, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, kArray, false,
+      true);
   primitive.attributes["NORMAL"] =
       buffer.add_meshopt_accessor(byte_normals(normals), n, 4, TINYGLTF_COMPONENT_TYPE_BYTE,
                                   TINYGLTF_TYPE_VEC3, kArray, true);

@@ -28,12 +28,13 @@
 //
 // Compression (GlbOptions::compress): every vertex stream, index buffer and animation key array
 // is compressed with meshoptimizer's codecs (EXT_meshopt_compression, required), and the vertex
-// data is quantised (KHR_mesh_quantization, required): positions and morph target position
-// displacements as 16-bit integers on one grid of step `position_step_mm` (larger when the
-// template's half-extent or the largest displacement would need more than 32,767 steps),
-// dequantised by the mesh node's translation (the template's bounding-box centre) and uniform
-// scale (the step), so a decoded vertex is within step * sqrt(3) of the exact one (half a step
-// per component from the template, half from the displacement); normals and normal displacements as normalised 8-bit integers (displacements clamped
+// data is quantised (KHR_mesh_quantization, required): the morph targets' position
+// displacements as 16-bit integers on a grid of step `position_step_mm` (larger when the largest
+// displacement would need more than 32,767 steps), the template's positions as floats in the
+// grid's units, both dequantised by the mesh node's translation (the template's bounding-box
+// centre) and uniform scale (the step), so a decoded vertex is within step * sqrt(3) / 2 of the
+// exact one (half a step per component); normals and normal displacements as normalised 8-bit
+// integers (displacements clamped
 // to [-1, 1]); UVs as normalised 16-bit integers. The root motion then animates a parent node
 // of the mesh node, so the node carrying the dequantisation stays static.
 #include <opencv2/core.hpp>
@@ -101,7 +102,7 @@ std::vector<unsigned char> encode_texture(const cv::Mat& image, const TextureEnc
 
 struct GlbOptions {
   bool compress = false;   // EXT_meshopt_compression + KHR_mesh_quantization (see above)
-  double position_step_mm = 0.4;  // grid step of the quantised positions [mm], 0.001..10
+  double position_step_mm = 0.8;  // grid step of the displacements [mm], 0.001..10
   TextureEncoding texture;
   // Throws UsageError naming the option.
   void check() const;

@@ -52,8 +52,8 @@ int main(int argc, char** argv) {
                "compress: EXT_meshopt_compression and quantised vertices (KHR_mesh_quantization); "
                "a viewer needs meshoptimizer's decoder (three.js: MeshoptDecoder)");
   app.add_option("--position-step", glb.position_step_mm,
-                 "with --compress: grid step of the quantised positions [mm]; a decoded vertex "
-                 "is within step * sqrt(3) of the exact one")
+                 "with --compress: grid step of the quantised vertex displacements [mm]; a "
+                 "decoded vertex is within step * sqrt(3) / 2 of the exact one")
       ->capture_default_str();
   app.add_option("--texture-size", glb.texture.size,
                  "resize the texture (the .glb's, and the sequence's per frame) so its longer "
