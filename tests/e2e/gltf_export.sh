@@ -3,7 +3,8 @@
 # the timeline script's result as clips; the Khronos validator finds no error; re-imported with
 # tinygltf the mesh and the clips are the asset's; the compressed export (--compress, a JPEG
 # texture) passes the validator too, is smaller, and decoded with meshoptimizer's decoder its
-# every frame lies within 1 mm of the plain export's; bad input is refused with a clear message.
+# every frame lies within 1 mm of the plain export's; a WebP texture (EXT_texture_webp) passes
+# the validator and re-imports; bad input is refused with a clear message.
 # usage: gltf_export.sh <tiny session> <work dir>   (FOURD_BIN: folder of the executables)
 set -euo pipefail
 source "$(dirname "$0")/export_common.sh"
@@ -24,6 +25,10 @@ plain_size=$(stat -c %s "$work/tiny.glb")
 packed_size=$(stat -c %s "$work/tiny_compressed.glb")
 echo "size: $plain_size bytes plain, $packed_size compressed"
 [ $((packed_size * 3)) -lt "$plain_size" ] || { echo "compressed is not 3x smaller"; exit 1; }
+echo "== WebP texture (EXT_texture_webp)"
+"$bin/fourd-export" "$asset" -o "$work/tiny_webp.glb" --texture-format webp --texture-size 256
+node "$here/validate_gltf.js" "$work/tiny_webp.glb"
+"$bin/gltf_check" "$asset" "$work/tiny_webp.glb"
 
 echo "== bad input"
 head -c 5000 "$asset" > "$work/truncated.fourd"
