@@ -15,6 +15,8 @@ find_package(SQLite3 REQUIRED)
 find_path(XXHASH_INCLUDE_DIR xxhash.h REQUIRED)
 find_library(XXHASH_LIBRARY xxhash REQUIRED)
 find_path(TINYGLTF_INCLUDE_DIR tiny_gltf.h REQUIRED)
+# EXT_meshopt_compression for fourd-export --compress (libmeshoptimizer-dev).
+find_package(meshoptimizer CONFIG REQUIRED)
 find_program(COLMAP_EXECUTABLE colmap)
 if(FOURD_BUILD_TESTS)
   find_package(GTest REQUIRED)

@@ -23,15 +23,32 @@
 // keys are its output frames (1 / fps apart).
 //
 // Texture: when the template has UVs (Mesh::uvs, per vertex or per corner) and `texture_png`
-// holds an image, TEXCOORD_0 (split at UV seams) and a baseColor texture are written.
+// holds an image, TEXCOORD_0 (split at UV seams) and a baseColor texture are written (as the
+// PNG it is, or re-encoded at another size or as JPEG / WebP: GlbOptions).
+//
+// Compression (GlbOptions::compress): every vertex stream, index buffer and animation key array
+// is compressed with meshoptimizer's codecs (EXT_meshopt_compression, required), and the vertex
+// data is quantised (KHR_mesh_quantization, required): the morph targets' position
+// displacements as 16-bit integers on a grid of step `position_step_mm` (larger when the largest
+// displacement would need more than 32,767 steps), the template's positions as floats in the
+// grid's units, both dequantised by the mesh node's translation (the template's bounding-box
+// centre) and uniform scale (the step), so a decoded vertex is within step * sqrt(3) / 2 of the
+// exact one (half a step per component); normals and normal displacements as normalised 8-bit
+// integers (displacements clamped
+// to [-1, 1]); UVs as normalised 16-bit integers. The root motion then animates a parent node
+// of the mesh node, so the node carrying the dequantisation stays static.
+#include <opencv2/core.hpp>
+
 #include <filesystem>
 #include <string>
 #include <vector>
 
 #include "pipeline/core/mesh.h"
+#include "pipeline/gltf/gltf.h"
 #include "runtime/asset.h"
 #include "runtime/character.h"
 #include "runtime/player.h"
+#include "runtime/textures.h"
 
 namespace fourd {
 
@@ -43,6 +60,7 @@ struct MeshClip {
   std::vector<std::vector<Vec3f>> positions;     // per frame, #V
   std::vector<std::vector<Vec3f>> normals;       // per frame, #V (any length > 0)
   std::vector<RootTransform> roots;              // per frame
+  std::vector<TextureBlend> textures;            // per frame; empty without textures
 
   int num_frames() const { return static_cast<int>(times.size()); }
 };
@@ -68,9 +86,37 @@ std::vector<unsigned char> asset_template_texture_png(const Asset& asset);
 MeshClip bake_control_script(const Asset& asset, const ControlScript& script,
                              PlayerOptions options, const std::string& name);
 
+// How a texture is written: as it is (PNG at its size) or resized and re-encoded.
+struct TextureEncoding {
+  int size = 0;                // > 0: the longer side is resized to this many pixels
+  std::string format = "png";  // png | jpeg | webp (in a .glb: EXT_texture_webp, required)
+  int quality = 90;            // jpeg / webp quality, 1..100
+  bool keeps_png() const { return size == 0 && format == "png"; }
+  std::string extension() const;  // ".png", ".jpg", ".webp"
+  std::string mime_type() const;
+  // Throws UsageError naming the option.
+  void check() const;
+};
+// `image` (8-bit BGR) resized and encoded as `encoding` says; IoError when it cannot be.
+std::vector<unsigned char> encode_texture(const cv::Mat& image, const TextureEncoding& encoding);
+
+struct GlbOptions {
+  bool compress = false;   // EXT_meshopt_compression + KHR_mesh_quantization (see above)
+  double position_step_mm = 0.8;  // grid step of the displacements [mm], 0.001..10
+  TextureEncoding texture;
+  // Throws UsageError naming the option.
+  void check() const;
+};
+
+// The vertices as the .glb stores them (which template vertex and UV each copies, and the
+// triangles over them): split at UV seams and, compressed, reordered for the codecs.
+gltf::ExportVertices glb_vertices(const Mesh& base, const GlbOptions& options);
+
 // Writes `animation` as a .glb, atomically. Throws InputError naming the file for an
 // inconsistent animation (sizes, times, clip names not unique), IoError when it cannot be
-// written.
-void write_mesh_animation_glb(const std::filesystem::path& path, const MeshAnimation& animation);
+// written. With the default options the file is the plain one (float attributes, the PNG as
+// given).
+void write_mesh_animation_glb(const std::filesystem::path& path, const MeshAnimation& animation,
+                              const GlbOptions& options = {});
 
 }  // namespace fourd

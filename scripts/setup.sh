@@ -7,7 +7,7 @@ PACKAGES=(
   build-essential cmake ninja-build ccache pkg-config git python3
   libeigen3-dev libopencv-dev libcgal-dev libopenmesh-dev libembree-dev
   libopenimageio-dev openimageio-tools libyaml-cpp-dev nlohmann-json3-dev libcli11-dev
-  libtbb-dev libfmt-dev libxxhash-dev libtinygltf-dev libsqlite3-dev
+  libtbb-dev libfmt-dev libxxhash-dev libtinygltf-dev libmeshoptimizer-dev libsqlite3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libglfw3-dev libimgui-dev libepoxy-dev xvfb xauth libgl1-mesa-dri
   clang libclang-rt-14-dev
@@ -15,6 +15,7 @@ PACKAGES=(
   snakemake
   ffmpeg
   nodejs
+  blender python3-numpy chromium  # real glTF clients the export tests open the .glb in
 )
 missing=()
 for p in "${PACKAGES[@]}"; do
@@ -30,11 +31,14 @@ else
   echo "fourd setup: all Debian packages present"
 fi
 
-# The Khronos glTF validator (the gltf_export test runs it on fourd-export's output): an npm
-# package, installed globally outside the repository, at a pinned version.
-GLTF_VALIDATOR_VERSION=2.0.0-dev.3.10
-if [ "$(npm ls -g --depth=0 gltf-validator 2>/dev/null | grep -o 'gltf-validator@.*')" != \
-     "gltf-validator@$GLTF_VALIDATOR_VERSION" ]; then
-  echo "fourd setup: installing gltf-validator@$GLTF_VALIDATOR_VERSION (npm)"
-  $SUDO npm install -g --no-fund --no-audit "gltf-validator@$GLTF_VALIDATOR_VERSION"
-fi
+# npm packages the export tests use, installed globally outside the repository at pinned
+# versions: the Khronos glTF validator (run on fourd-export's output), three.js (GLTFLoader and
+# MeshoptDecoder open the .glb in a browser) and puppeteer-core (drives Debian's chromium).
+NPM_PACKAGES=(gltf-validator@2.0.0-dev.3.10 three@0.187.0 puppeteer-core@24.43.1)
+for spec in "${NPM_PACKAGES[@]}"; do
+  name="${spec%@*}"
+  if [ "$(npm ls -g --depth=0 "$name" 2>/dev/null | grep -o "$name@.*")" != "$spec" ]; then
+    echo "fourd setup: installing $spec (npm)"
+    $SUDO npm install -g --no-fund --no-audit "$spec"
+  fi
+done

@@ -4,7 +4,11 @@
 
 #include <fmt/format.h>
 
+#include <meshoptimizer.h>
+
+#include <cstring>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <numeric>
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
@@ -87,11 +91,49 @@ int BufferWriter::add_view(const void* bytes, std::size_t size, int target) {
   return static_cast<int>(model_.bufferViews.size()) - 1;
 }
 
+int BufferWriter::add_meshopt_view(const void* bytes, std::size_t count, std::size_t stride,
+                                   MeshoptMode mode, int target) {
+  std::vector<unsigned char> encoded;
+  if (mode == MeshoptMode::kAttributes) {
+    if (stride == 0 || stride % 4 != 0 || stride > 256)
+      throw Error(fmt::format("meshopt attribute stride {} (a multiple of 4 up to 256)", stride));
+    encoded.resize(meshopt_encodeVertexBufferBound(count, stride));
+    encoded.resize(meshopt_encodeVertexBuffer(encoded.data(), encoded.size(), bytes, count, stride));
+  } else {
+    if ((stride != 2 && stride != 4) || count % 3 != 0)
+      throw Error(fmt::format("meshopt triangles: stride {}, {} indices", stride, count));
+    std::vector<unsigned int> indices(count);
+    std::size_t vertices = 0;
+    for (std::size_t i = 0; i < count; ++i) {
+      if (stride == 2) {
+        std::uint16_t v;
+        std::memcpy(&v, static_cast<const unsigned char*>(bytes) + 2 * i, 2);
+        indices[i] = v;
+      } else {
+        std::memcpy(&indices[i], static_cast<const unsigned char*>(bytes) + 4 * i, 4);
+      }
+      vertices = std::max<std::size_t>(vertices, indices[i] + 1);
+    }
+    encoded.resize(meshopt_encodeIndexBufferBound(count, vertices));
+    encoded.resize(meshopt_encodeIndexBuffer(encoded.data(), encoded.size(), indices.data(), count));
+  }
+  if (encoded.empty()) throw Error("meshoptimizer could not encode a buffer view");
+  const int view = add_view(encoded.data(), encoded.size(), target);
+  if (target == TINYGLTF_TARGET_ARRAY_BUFFER) model_.bufferViews[view].byteStride = stride;
+  meshopt_.push_back({view, stride, count, mode});
+  return view;
+}
+
 int BufferWriter::add_png_texture(std::span<const unsigned char> png, const std::string& name) {
+  return add_image_texture(png, "image/png", name);
+}
+
+int BufferWriter::add_image_texture(std::span<const unsigned char> bytes,
+                                    const std::string& mime_type, const std::string& name) {
   tinygltf::Image image;
   image.name = name;
-  image.mimeType = "image/png";
-  image.bufferView = add_view(png.data(), png.size(), 0);
+  image.mimeType = mime_type;
+  image.bufferView = add_view(bytes.data(), bytes.size(), 0);
   model_.images.push_back(image);
   tinygltf::Sampler sampler;
   sampler.magFilter = TINYGLTF_TEXTURE_FILTER_LINEAR;
@@ -105,10 +147,16 @@ int BufferWriter::add_png_texture(std::span<const unsigned char> png, const std:
 }
 
 void add_linear_channel(tinygltf::Animation* animation, BufferWriter& buffer, int input, int node,
-                        const char* path, const std::vector<float>& values, int type) {
+                        const char* path, const std::vector<float>& values, int type,
+                        bool meshopt) {
   tinygltf::AnimationSampler sampler;
   sampler.input = input;
-  sampler.output = buffer.add_accessor(values, TINYGLTF_COMPONENT_TYPE_FLOAT, type, 0);
+  const std::size_t components = tinygltf::GetNumComponentsInType(type);
+  sampler.output =
+      meshopt ? buffer.add_meshopt_accessor(values, values.size() / components,
+                                            components * sizeof(float),
+                                            TINYGLTF_COMPONENT_TYPE_FLOAT, type, 0, false)
+              : buffer.add_accessor(values, TINYGLTF_COMPONENT_TYPE_FLOAT, type, 0);
   sampler.interpolation = "LINEAR";
   animation->samplers.push_back(sampler);
   tinygltf::AnimationChannel channel;
@@ -158,6 +206,29 @@ ExportVertices export_vertices(const Mesh& mesh) {
   return out;
 }
 
+void order_for_compression(ExportVertices* vertices) {
+  const std::size_t n = vertices->source.size();
+  std::vector<unsigned int> indices;
+  for (const Tri& t : vertices->triangles)
+    for (int c = 0; c < 3; ++c) indices.push_back(static_cast<unsigned int>(t[c]));
+  meshopt_optimizeVertexCache(indices.data(), indices.data(), indices.size(), n);
+  std::vector<unsigned int> remap(n);  // old -> new
+  std::size_t used = meshopt_optimizeVertexFetchRemap(remap.data(), indices.data(), indices.size(), n);
+  for (unsigned int& r : remap)
+    if (r == ~0u) r = static_cast<unsigned int>(used++);
+  ExportVertices out;
+  out.source.resize(n);
+  out.uv.resize(n);
+  for (std::size_t v = 0; v < n; ++v) {
+    out.source[remap[v]] = vertices->source[v];
+    out.uv[remap[v]] = vertices->uv[v];
+  }
+  out.triangles.resize(vertices->triangles.size());
+  for (std::size_t f = 0; f < out.triangles.size(); ++f)
+    for (int c = 0; c < 3; ++c) out.triangles[f][c] = static_cast<int>(remap[indices[3 * f + c]]);
+  *vertices = std::move(out);
+}
+
 tinygltf::Primitive add_mesh_primitive(BufferWriter& buffer, const Mesh& mesh, bool with_uvs,
                                        ExportVertices* vertices) {
   *vertices = export_vertices(mesh);
@@ -193,12 +264,75 @@ tinygltf::Primitive add_mesh_primitive(BufferWriter& buffer, const Mesh& mesh, b
   return primitive;
 }
 
-void write_glb(const std::filesystem::path& path, tinygltf::Model& model) {
+namespace {
+
+std::uint32_t read_u32(const std::string& bytes, std::size_t at) {
+  std::uint32_t v = 0;
+  std::memcpy(&v, bytes.data() + at, 4);
+  return v;
+}
+
+void append_u32(std::string* out, std::uint32_t v) {
+  out->append(reinterpret_cast<const char*>(&v), 4);
+}
+
+// Rewrites the JSON chunk of the GLB `glb` (tinygltf's: JSON chunk then BIN chunk) so that the
+// views in `meshopt` are EXT_meshopt_compression views: the extension points at the encoded
+// bytes where tinygltf wrote them (buffer 0), the view itself at its decoded place in a fallback
+// buffer (buffer 1, no data).
+std::string add_meshopt_extension(const std::string& glb, std::span<const MeshoptView> meshopt) {
+  if (glb.size() < 20 || glb.compare(0, 4, "glTF") != 0)
+    throw Error("tinygltf wrote no GLB header");
+  const std::uint32_t json_length = read_u32(glb, 12);
+  nlohmann::json json = nlohmann::json::parse(glb.substr(20, json_length));
+  const std::string bin = glb.substr(20 + json_length);  // the BIN chunk, header included
+  nlohmann::json& views = json["bufferViews"];
+  const int fallback = static_cast<int>(json["buffers"].size());
+  std::size_t fallback_size = 0;
+  for (const MeshoptView& m : meshopt) {
+    nlohmann::json& view = views.at(m.view);
+    nlohmann::json ext;
+    ext["buffer"] = view.at("buffer");
+    ext["byteOffset"] = view.value("byteOffset", 0);
+    ext["byteLength"] = view.at("byteLength");
+    ext["byteStride"] = m.stride;
+    ext["count"] = m.count;
+    ext["mode"] = m.mode == MeshoptMode::kAttributes ? "ATTRIBUTES" : "TRIANGLES";
+    fallback_size = (fallback_size + 3) / 4 * 4;
+    view["buffer"] = fallback;
+    view["byteOffset"] = fallback_size;
+    view["byteLength"] = m.stride * m.count;
+    view["extensions"]["EXT_meshopt_compression"] = ext;
+    fallback_size += m.stride * m.count;
+  }
+  json["buffers"].push_back({{"byteLength", fallback_size},
+                             {"extensions", {{"EXT_meshopt_compression", {{"fallback", true}}}}}});
+  for (const char* key : {"extensionsUsed", "extensionsRequired"}) {
+    nlohmann::json& list = json[key];
+    if (std::find(list.begin(), list.end(), "EXT_meshopt_compression") == list.end())
+      list.push_back("EXT_meshopt_compression");
+  }
+  std::string text = json.dump();
+  text.resize((text.size() + 3) / 4 * 4, ' ');
+  std::string out = "glTF";
+  append_u32(&out, 2);
+  append_u32(&out, static_cast<std::uint32_t>(12 + 8 + text.size() + bin.size()));
+  append_u32(&out, static_cast<std::uint32_t>(text.size()));
+  out += "JSON";
+  out += text;
+  out += bin;
+  return out;
+}
+
+}  // namespace
+
+void write_glb(const std::filesystem::path& path, tinygltf::Model& model,
+               std::span<const MeshoptView> meshopt) {
   tinygltf::TinyGLTF writer;
   std::ostringstream bytes;
   if (!writer.WriteGltfSceneToStream(&model, bytes, false, true))
     throw IoError(fmt::format("cannot serialise the glTF model for {}", path.string()));
-  write_file_atomic(path, bytes.str());
+  write_file_atomic(path, meshopt.empty() ? bytes.str() : add_meshopt_extension(bytes.str(), meshopt));
 }
 
 tinygltf::Model read_gltf(const std::filesystem::path& path) {

@@ -1,6 +1,9 @@
 // fourd-export: writes an asset as binary glTF 2.0 (.glb): the template mesh, every captured take
-// as an animation clip and optionally the baked result of a control script (runtime/gltf_export.h).
+// as an animation clip and optionally the baked result of a control script (runtime/gltf_export.h);
+// and/or one take or the script's result as a mesh sequence (runtime/mesh_sequence.h).
 #include <CLI/CLI.hpp>
+#include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <filesystem>
 #include <string>
@@ -12,6 +15,7 @@
 #include "pipeline/core/log.h"
 #include "runtime/asset.h"
 #include "runtime/gltf_export.h"
+#include "runtime/mesh_sequence.h"
 #include "runtime/player.h"
 
 int main(int argc, char** argv) {
@@ -19,13 +23,22 @@ int main(int argc, char** argv) {
   CLI::App app{"glTF 2.0 export: writes a motion graph asset (asset/motion_graph.fourd) as one "
                "binary .glb: the template mesh, every captured take as an animation clip named "
                "after the take (one morph target per frame, the root motion on the node) and, "
-               "with --script, the frames a control script plays as one more clip.",
+               "with --script, the frames a control script plays as one more clip; with "
+               "--sequence, one take (--take) or the script's result as one mesh file and "
+               "texture per frame with a sequence.json manifest.",
                "fourd-export"};
-  std::string asset_path, out_path, script_path, clip_name;
+  std::string asset_path, out_path, script_path, clip_name, sequence_dir, take;
   PlayerOptions player;
+  GlbOptions glb;
+  SequenceOptions sequence;
   bool verbose = false;
   app.add_option("asset", asset_path, "the asset file (motion_graph.fourd)")->required();
-  app.add_option("-o,--out", out_path, "the .glb to write")->required();
+  app.add_option("-o,--out", out_path, "the .glb to write");
+  app.add_option("--sequence", sequence_dir,
+                 "write a mesh sequence of --take or of the --script's result into this folder");
+  app.add_option("--take", take, "with --sequence: the captured take to write");
+  app.add_option("--sequence-format", sequence.format, "with --sequence: ply | obj")
+      ->capture_default_str();
   app.add_option("--script", script_path,
                  "a control script (see fourd-play) whose result is baked as one more clip");
   app.add_option("--clip-name", clip_name,
@@ -35,14 +48,39 @@ int main(int argc, char** argv) {
   app.add_option("--duration", player.duration, "seconds of the script to bake (default: the "
                  "script's)")
       ->check(CLI::NonNegativeNumber);
+  app.add_flag("--compress", glb.compress,
+               "compress: EXT_meshopt_compression and quantised vertices (KHR_mesh_quantization); "
+               "a viewer needs meshoptimizer's decoder (three.js: MeshoptDecoder)");
+  app.add_option("--position-step", glb.position_step_mm,
+                 "with --compress: grid step of the quantised vertex displacements [mm]; a "
+                 "decoded vertex is within step * sqrt(3) / 2 of the exact one")
+      ->capture_default_str();
+  app.add_option("--texture-size", glb.texture.size,
+                 "resize the texture (the .glb's, and the sequence's per frame) so its longer "
+                 "side has this many pixels (0: as is)")
+      ->capture_default_str();
+  app.add_option("--texture-format", glb.texture.format, "png | jpeg | webp (EXT_texture_webp)")
+      ->capture_default_str();
+  app.add_option("--texture-quality", glb.texture.quality, "jpeg / webp quality (1..100)")
+      ->capture_default_str();
   app.add_flag("-v,--verbose", verbose, "debug messages");
   if (const auto code = parse_command_line(app, argc, argv)) return *code;
   if (verbose) log::set_level(log::Level::kDebug);
   return run_guarded("fourd-export", [&]() -> int {
     log::Timer timer;
+    glb.check();
+    sequence.texture = glb.texture;
+    sequence.check();
+    if (out_path.empty() && sequence_dir.empty())
+      throw UsageError("nothing to write: give -o FILE.glb and/or --sequence DIR");
+    if (!sequence_dir.empty() && take.empty() == script_path.empty())
+      throw UsageError("--sequence needs one of --take NAME or --script FILE");
+    if (!take.empty() && sequence_dir.empty())
+      throw UsageError("--take is for --sequence");
     // An output folder that cannot be made fails now, not after the work.
-    const std::filesystem::path out_dir = std::filesystem::path(out_path).parent_path();
-    if (!out_dir.empty()) ensure_directory(out_dir);
+    for (const std::filesystem::path out : {std::filesystem::path(out_path).parent_path(),
+                                            std::filesystem::path(sequence_dir).parent_path()})
+      if (!out.empty()) ensure_directory(out);
     const Asset asset = load_asset(asset_path);
     MeshAnimation animation;
     animation.name = asset.graph.name;
@@ -55,12 +93,34 @@ int main(int argc, char** argv) {
           clip_name.empty() ? std::filesystem::path(script_path).stem().string() : clip_name;
       animation.clips.push_back(bake_control_script(asset, script, player, name));
     }
+    if (!sequence_dir.empty()) {
+      const MeshClip* clip = nullptr;
+      for (const MeshClip& c : animation.clips)
+        if (take.empty() ? &c == &animation.clips.back() : c.name == take) clip = &c;
+      if (clip == nullptr) {
+        std::vector<std::string> takes;
+        for (const GraphSpace& space : asset.graph.spaces)
+          takes.insert(takes.end(), space.motion.takes.begin(), space.motion.takes.end());
+        throw UsageError(fmt::format("--take {}: the asset's takes are {}", take,
+                                     fmt::join(takes, ", ")));
+      }
+      // A take's rate: its mean captured one; a script's: the one it played at.
+      const double fps = clip->num_frames() > 1 && clip->times.back() > clip->times.front()
+                             ? (clip->num_frames() - 1) / (clip->times.back() - clip->times.front())
+                             : asset.graph.fps;
+      const SequenceReport report =
+          write_mesh_sequence(sequence_dir, asset, *clip, fps, sequence);
+      log::info("{}: clip '{}', {} frames at {:.2f} fps, {:.1f} MB", sequence_dir, clip->name,
+                report.frames, report.fps, report.bytes / 1e6);
+    }
+    if (out_path.empty()) return kExitOk;
     int frames = 0;
     for (const MeshClip& clip : animation.clips) frames += clip.num_frames();
-    write_mesh_animation_glb(out_path, animation);
-    log::info("{}: {} vertices, {} clips, {} morph targets, {}, {:.1f} MB in {:.1f} s", out_path,
-              animation.base.num_vertices(), animation.clips.size(), frames,
+    write_mesh_animation_glb(out_path, animation, glb);
+    log::info("{}: {} vertices, {} clips, {} morph targets, {}{}, {:.1f} MB in {:.1f} s",
+              out_path, animation.base.num_vertices(), animation.clips.size(), frames,
               animation.texture_png.empty() ? "no texture" : "textured",
+              glb.compress ? ", compressed" : "",
               std::filesystem::file_size(out_path) / 1e6, timer.seconds());
     return kExitOk;
   });

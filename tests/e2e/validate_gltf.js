@@ -1,6 +1,6 @@
 #!/usr/bin/env node
 // Validates a .glb/.gltf with the Khronos glTF validator (npm package gltf-validator, installed
-// globally by scripts/setup.sh): prints the issue counts and every error and warning, exits 1
+// globally by scripts/setup.sh): prints the issue counts and every error, warning and info, exits 1
 // when there is an error (2 when the validator cannot run).
 // usage: node validate_gltf.js FILE
 'use strict';
@@ -46,8 +46,9 @@ validator
     console.log(`${file}: glTF validator ${report.validatorVersion}: ${issues.numErrors} errors, ` +
                 `${issues.numWarnings} warnings, ${issues.numInfos} infos, ${issues.numHints} hints`);
     for (const m of issues.messages) {
-      if (m.severity <= 1) {
-        console.log(`  ${m.severity === 0 ? 'error' : 'warning'} ${m.code} at ${m.pointer}: ${m.message}`);
+      if (m.severity <= 2) {
+        const kind = ['error', 'warning', 'info'][m.severity];
+        console.log(`  ${kind} ${m.code} at ${m.pointer}: ${m.message}`);
       }
     }
     process.exit(issues.numErrors > 0 ? 1 : 0);

@@ -4,7 +4,9 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
+#include <nlohmann/json.hpp>
 #include <cstring>
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
@@ -12,6 +14,8 @@
 #include "pipeline/core/error.h"
 #include "pipeline/core/files.h"
 #include "pipeline/gltf/gltf.h"
+#include "pipeline/core/mesh_io.h"
+#include "runtime/mesh_sequence.h"
 #include "runtime/root_math.h"
 #include "tests/graph/test_graph.h"
 #include "tests/scratch_dir.h"
@@ -195,6 +199,108 @@ TEST(GltfExport, BakesAControlScriptAsOneMoreClip) {
   const std::vector<float> translation = channel_output(model, model.animations.back(), "translation");
   const Vec3f last(static_cast<float>(clip.roots[60].x), static_cast<float>(clip.roots[60].y), 0);
   EXPECT_LT((our_point(translation, 60) - last).norm(), 1e-4f);
+}
+
+// The JSON chunk of a .glb.
+nlohmann::json glb_json(const fs::path& file) {
+  const std::string bytes = read_file(file);
+  std::uint32_t length = 0;
+  std::memcpy(&length, bytes.data() + 12, 4);
+  return nlohmann::json::parse(bytes.substr(20, length));
+}
+
+TEST(GltfExport, CompressedDeclaresMeshoptAndQuantisationAndIsSmaller) {
+  const Asset& asset = test_asset();
+  const fs::path dir = test::scratch_dir("compressed");
+  write_mesh_animation_glb(dir / "plain.glb", takes_of(asset));
+  GlbOptions options;
+  options.compress = true;
+  write_mesh_animation_glb(dir / "packed.glb", takes_of(asset), options);
+  EXPECT_LT(fs::file_size(dir / "packed.glb") * 2, fs::file_size(dir / "plain.glb"));
+  const nlohmann::json j = glb_json(dir / "packed.glb");
+  const std::vector<std::string> required = j.at("extensionsRequired");
+  EXPECT_EQ(required, (std::vector<std::string>{"KHR_mesh_quantization", "EXT_meshopt_compression"}));
+  // Buffer 1 is the fallback every compressed view points into; the codec's bytes are in 0.
+  ASSERT_EQ(j.at("buffers").size(), 2u);
+  EXPECT_TRUE(j["buffers"][1]["extensions"]["EXT_meshopt_compression"]["fallback"].get<bool>());
+  for (const nlohmann::json& view : j.at("bufferViews")) {
+    EXPECT_EQ(view.at("buffer"), 1);
+    const nlohmann::json& ext = view.at("extensions").at("EXT_meshopt_compression");
+    EXPECT_EQ(ext.at("buffer"), 0);
+    EXPECT_EQ(view.at("byteLength").get<std::size_t>(),
+              ext.at("count").get<std::size_t>() * ext.at("byteStride").get<std::size_t>());
+    EXPECT_LT(ext.at("byteLength").get<std::size_t>(), view.at("byteLength").get<std::size_t>() + 64);
+  }
+  // The root motion on node 0, the mesh on its static child that dequantises the positions
+  // (the test asset moves little: the grid step is the default 0.8 mm).
+  const nlohmann::json& nodes = j.at("nodes");
+  ASSERT_EQ(nodes.size(), 2u);
+  EXPECT_EQ(nodes[0].at("children"), nlohmann::json::array({1}));
+  EXPECT_FALSE(nodes[0].contains("mesh"));
+  EXPECT_EQ(nodes[1].at("mesh"), 0);
+  EXPECT_NEAR(nodes[1].at("scale")[0].get<double>(), 0.0008, 1e-9);
+  for (const nlohmann::json& channel : j["animations"][0]["channels"])
+    EXPECT_EQ(channel["target"]["node"], channel["target"]["path"] == "weights" ? 1 : 0);
+  const nlohmann::json& primitive = j["meshes"][0]["primitives"][0];
+  EXPECT_EQ(j["accessors"][primitive["attributes"]["POSITION"].get<int>()]["componentType"], 5126);
+  EXPECT_EQ(j["accessors"][primitive["attributes"]["NORMAL"].get<int>()]["componentType"], 5120);
+  EXPECT_EQ(j["accessors"][primitive["targets"][0]["POSITION"].get<int>()]["componentType"], 5122);
+  // The vertices are reordered for the codec, still one per template vertex.
+  const gltf::ExportVertices order = glb_vertices(asset_template(asset), options);
+  std::vector<int> sorted = order.source;
+  std::sort(sorted.begin(), sorted.end());
+  for (std::size_t v = 0; v < sorted.size(); ++v) ASSERT_EQ(sorted[v], static_cast<int>(v));
+}
+
+TEST(GltfExport, RefusesBadTextureOptions) {
+  GlbOptions options;
+  options.texture.format = "gif";
+  EXPECT_THROW(options.check(), UsageError);
+  options.texture.format = "webp";
+  options.texture.quality = 0;
+  EXPECT_THROW(options.check(), UsageError);
+  options.texture.quality = 80;
+  options.position_step_mm = 0;
+  EXPECT_THROW(options.check(), UsageError);
+}
+
+TEST(MeshSequence, WritesEveryFrameAndAManifestAsAWhole) {
+  const Asset& asset = test_asset();
+  const std::vector<MeshClip> clips = asset_take_clips(asset);
+  const MeshClip& clip = clips.back();
+  const fs::path dir = test::scratch_dir("sequence") / "seq";
+  const SequenceReport report = write_mesh_sequence(dir, asset, clip, 25, SequenceOptions{});
+  EXPECT_EQ(report.frames, clip.num_frames());
+  const nlohmann::json manifest = nlohmann::json::parse(read_file(dir / "sequence.json"));
+  EXPECT_EQ(manifest.at("clip"), clip.name);
+  EXPECT_EQ(manifest.at("fps"), 25.0);
+  ASSERT_EQ(manifest.at("frames").size(), static_cast<std::size_t>(clip.num_frames()));
+  const int last = clip.num_frames() - 1;
+  const nlohmann::json& frame = manifest["frames"][last];
+  const Mesh mesh = read_mesh(dir / frame.at("mesh").get<std::string>());
+  ASSERT_EQ(mesh.num_vertices(), clip.positions[last].size());
+  // World coordinates: the root-frame vertex turned by the heading and moved by the root.
+  const RootTransform& root = clip.roots[last];
+  const Vec3f p = clip.positions[last][0];
+  const Vec3f world(static_cast<float>(root.x + std::cos(root.heading) * p.x() -
+                                       std::sin(root.heading) * p.y()),
+                    static_cast<float>(root.y + std::sin(root.heading) * p.x() +
+                                       std::cos(root.heading) * p.y()),
+                    p.z());
+  EXPECT_LT((mesh.positions[0] - world).norm(), 1e-5f);
+  EXPECT_FLOAT_EQ(frame["bounding_box"]["max"][2].get<float>(),
+                  std::max_element(mesh.positions.begin(), mesh.positions.end(),
+                                   [](const Vec3f& a, const Vec3f& b) { return a.z() < b.z(); })
+                      ->z());
+  EXPECT_FALSE(frame.contains("texture"));  // the test asset has no textures
+
+  // A clip that does not fit the asset is refused and the folder stays as it was.
+  MeshClip bad = clip;
+  bad.positions.back().pop_back();
+  EXPECT_THROW(write_mesh_sequence(dir, asset, bad, 25, SequenceOptions{}), InputError);
+  EXPECT_EQ(nlohmann::json::parse(read_file(dir / "sequence.json")), manifest);
+  for (const auto& entry : fs::directory_iterator(dir.parent_path()))
+    EXPECT_EQ(entry.path().filename(), "seq");  // no staging folder left
 }
 
 TEST(GltfExport, RefusesInconsistentClipsAndUnwritablePaths) {
