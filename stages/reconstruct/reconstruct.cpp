@@ -692,6 +692,29 @@ void run_reconstruct(const Session& session, const StageArgs& args,
   }
   if (!volume_set && !blind.empty()) shared = shared_of(usable);
   const Rig rig = Rig::from(usable);
+  // The rig the frames are reconstructed with: cameras of more than max_image_pixels reduced.
+  std::vector<Camera> working = rig.cameras;
+  bool reduced = false;
+  for (Camera& cam : working) {
+    Intrinsics& k = cam.intrinsics;
+    const double pixels = static_cast<double>(k.width) * k.height;
+    if (options.max_image_pixels <= 0 || pixels <= options.max_image_pixels) continue;
+    const double s = std::sqrt(options.max_image_pixels / pixels);
+    const int w = std::max(1, static_cast<int>(std::lround(k.width * s)));
+    const int h = std::max(1, static_cast<int>(std::lround(k.height * s)));
+    log::info("camera {}: {}x{} images reconstructed at {}x{} (max_image_pixels {})", cam.name,
+              k.width, k.height, w, h, options.max_image_pixels);
+    const double sx = static_cast<double>(w) / k.width, sy = static_cast<double>(h) / k.height;
+    k.fx *= sx;
+    k.cx *= sx;
+    k.fy *= sy;
+    k.cy *= sy;
+    k.width = w;
+    k.height = h;
+    reduced = true;
+  }
+  const Rig work_rig = reduced ? Rig::from(working) : Rig{};
+  const Rig& work = reduced ? work_rig : rig;
   const std::vector<TakeFrames> takes = list_takes(session, rig.cameras);
   if (takes.empty()) {
     throw InputError(fmt::format("{}: no take with frames of the calibrated cameras",
@@ -798,6 +821,12 @@ void run_reconstruct(const Session& session, const StageArgs& args,
                                        "image is foreground)", cam.name, sil_path.string()));
         continue;
       }
+      const Intrinsics& k = work.cameras[c].intrinsics;
+      if (k.width != image.cols || k.height != image.rows) {
+        cv::resize(image, image, cv::Size(k.width, k.height), 0, 0, cv::INTER_AREA);
+        cv::resize(silhouette, silhouette, cv::Size(k.width, k.height), 0, 0, cv::INTER_AREA);
+        cv::threshold(silhouette, silhouette, 127, 255, cv::THRESH_BINARY);
+      }
       input.cameras.push_back(static_cast<int>(c));
       input.images.push_back(image);
       input.silhouettes.push_back(silhouette);
@@ -807,7 +836,7 @@ void run_reconstruct(const Session& session, const StageArgs& args,
       result.failure = fmt::format("only {} usable camera(s), {} needed", input.cameras.size(),
                                    options.min_cameras);
     } else {
-      result = reconstruct_frame(rig, input, options, options.write_visual_hull,
+      result = reconstruct_frame(work, input, options, options.write_visual_hull,
                                  out_dir / "work" / take / frame_name(frame));
     }
     warnings.insert(warnings.end(), result.warnings.begin(), result.warnings.end());

@@ -88,6 +88,11 @@ struct ReconstructOptions {
   int min_cameras = 3;             // usable cameras a frame needs
   bool write_visual_hull = true;   // also write visual_hull/<take>/<frame>.ply
   int frames_in_parallel = 0;      // frames reconstructed at once (0: as many as threads)
+  // Images (and their silhouettes) with more pixels are reduced to about this many for the
+  // reconstruction (0: never). The pixel-sized options (NCC windows, blur, hole sizes) are tuned
+  // at 640x480, where the subject spans ~300 px; a 1920x1080 camera reduced to 943x530 keeps
+  // sixteen cameras' frame within the time budget (docs/reconstruct.md, "Studio size").
+  int max_image_pixels = 500000;
   // Isosurfaces are extracted from every n-th sample of the fields: a fine grid's isosurface
   // (several 100k vertices) costs seconds to decimate. On the default sample (6 mm voxels) the
   // 12 mm isosurface decimated to 5,000 vertices covers more of the true surface than the
@@ -119,6 +124,9 @@ struct ReconstructOptions {
     v("write_visual_hull", write_visual_hull, "also write the visual hull meshes");
     v("frames_in_parallel", frames_in_parallel, "frames reconstructed at once (0: threads)",
       Range{0, 1024});
+    v("max_image_pixels", max_image_pixels,
+      "larger images (and silhouettes) are reduced to about this many pixels (0: never)",
+      Range{0, 1e9});
     v("isosurface_step", isosurface_step,
       "isosurfaces from every n-th field sample (1: the full grid)", Range{1, 8});
     v("visual_hull_step", visual_hull_step,
