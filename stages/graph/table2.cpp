@@ -67,7 +67,7 @@ double played_similarity_cost(const MotionGraph& graph, const TransitionPath& pa
 
 Table2 evaluate_table2(const MotionGraph& graph, const TransitionOptions& transitions,
                        const Table2Options& options, double similarity_cpu_s,
-                       double precompute_cpu_s) {
+                       double precompute_cpu_s, const CharacterOptions& character_options) {
   Table2 table;
   if (options.transitions <= 0) return table;
   const std::vector<int> edges = table_edges(graph, options);
@@ -142,7 +142,7 @@ Table2 evaluate_table2(const MotionGraph& graph, const TransitionOptions& transi
     }
   }
   // The requests played, as the runtime plays them.
-  Character character(graph, transitions);
+  Character character(graph, transitions, character_options);
   table.jumps.depth = transitions.depth;
   for (const Request& r : requests) {
     const TransitionJump jump =

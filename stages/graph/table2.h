@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "pipeline/core/config.h"
+#include "runtime/character.h"
 #include "runtime/motion_graph.h"
 #include "runtime/transition.h"
 
@@ -78,9 +79,10 @@ struct Table2 {
 // `precompute_cpu_s`: of the baseline's n best transitions (it needs the matrices' features too,
 // so its offline time is the sum). Throws ConfigError for a space name the graph lacks or no
 // edge between the listed spaces.
+// `character`: how the requests are played (Table2Jumps).
 Table2 evaluate_table2(const MotionGraph& graph, const TransitionOptions& transitions,
                        const Table2Options& options, double similarity_cpu_s,
-                       double precompute_cpu_s);
+                       double precompute_cpu_s, const CharacterOptions& character = {});
 
 nlohmann::json table2_json(const Table2& table);
 
