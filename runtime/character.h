@@ -66,7 +66,7 @@ struct CharacterOptions {
   double tick_seconds = 1.0 / 240;    // [s] integration step in motion time
   double crossfade_seconds = 0.2;     // [s] shortest cross-fade at a transition's switch (0: none)
   double crossfade_max_seconds = 1.0; // [s] longest cross-fade (the fade's length adapts)
-  double crossfade_speed_share = 0.3; // the fade's own vertex speed / the motions' p99, at most
+  double crossfade_speed_share = 0.4; // the fade's own vertex speed / the motions' p99, at most
   bool align_at_switch = true;        // fit the target's shape onto the source's at the switch
   double one_shot_exit_t = 0.75;      // normalised time at which a one-shot space plans its exit
   double max_turn_rate = 2.0;         // [rad/s] limit of set_turn_rate
