@@ -18,14 +18,14 @@
 // ramps linearly to the exit's, then the character switches to the target at the path's entry
 // and plays to the requested state, ramping the parameter likewise. The switch is hidden by a
 // cross-fade (smoothstep): the source keeps playing from its exit and its shape and root
-// velocity fade into the target's, so neither the shape nor the root pops. At the switch the
-// target is aligned to the source (align_at_switch: the ground-plane rotation and translation
-// that best fit the target's shape onto the source's; the root takes it on, so the body does
-// not move and the root keeps that small offset), and the fade lasts long enough that the fade
-// itself moves no vertex faster than crossfade_speed_share of the faster motion's own vertex
-// speed (its 99th percentile, measured per space at construction): 1.5 D / T <= share v for
-// the largest vertex gap D left after the alignment (smoothstep's steepest slope is 1.5 / T),
-// T between crossfade_seconds and crossfade_max_seconds. Requests made while a cross-fade runs wait for its end. A request with no direct
+// velocity fade into the target's, so neither the shape nor the root pops. The fade lasts long
+// enough that the fade itself moves no vertex faster than crossfade_speed_share of the faster
+// motion's own vertex speed (its 99th percentile, measured per space at construction): 1.5 D / T <= share v for
+// the largest vertex gap D between the two frames (smoothstep's steepest slope is 1.5 / T),
+// T between crossfade_seconds and crossfade_max_seconds. With align_at_switch (off by default)
+// the target is first aligned to the source: the ground-plane rotation and translation that
+// best fit the target's shape onto the source's, which the root takes on (the body does not
+// move; the root steps by the fit and keeps that small offset). Requests made while a cross-fade runs wait for its end. A request with no direct
 // edge follows the shortest route through the graph (precomputed at construction), one edge at
 // a time, passing through intermediate spaces at the middle of their parameter range. A one-shot
 // space plays to options.one_shot_exit_t and then starts the transition to what comes next (the
@@ -67,7 +67,7 @@ struct CharacterOptions {
   double crossfade_seconds = 0.2;     // [s] shortest cross-fade at a transition's switch (0: none)
   double crossfade_max_seconds = 1.0; // [s] longest cross-fade (the fade's length adapts)
   double crossfade_speed_share = 0.4; // the fade's own vertex speed / the motions' p99, at most
-  bool align_at_switch = true;        // fit the target's shape onto the source's at the switch
+  bool align_at_switch = false;       // fit the target's shape onto the source's at the switch (moves the root)
   double one_shot_exit_t = 0.75;      // normalised time at which a one-shot space plans its exit
   double max_turn_rate = 2.0;         // [rad/s] limit of set_turn_rate
   bool normalize_normals = true;      // unit normals out (else the raw blend)

@@ -40,9 +40,8 @@ int main(int argc, char** argv) {
                  "cross-fade at a transition's switch [s]");
   app.add_option("--crossfade-max", options.character.crossfade_max_seconds,
                  "longest cross-fade [s] (the fade adapts to the gap at the switch)");
-  bool no_align = false;
-  app.add_flag("--no-switch-alignment", no_align,
-               "do not fit the target's shape onto the source's at a switch");
+  app.add_flag("--switch-alignment", options.character.align_at_switch,
+               "fit the target's shape onto the source's at a switch (the root takes the fit on)");
   app.add_option("--tick", options.character.tick_seconds, "integration tick [s]");
   app.add_option("--depth", options.transitions_depth, "trellis depth (default: the asset's)");
   RenderOptions render;
@@ -76,7 +75,6 @@ int main(int argc, char** argv) {
   if (verbose) log::set_level(log::Level::kDebug);
   options.out_dir = out_dir;
   options.write_meshes = !no_meshes;
-  options.character.align_at_switch = !no_align;
   if (render_dir.empty() && (!render.mp4.empty() || !image_size.empty() ||
                              app.count("--camera") > 0 || app.count("--calibration") > 0)) {
     log::error("fourd-play: --camera, --calibration, --image-size and --mp4 need --render DIR");

@@ -74,11 +74,17 @@ TEST(TransitionJump, ACrossFadeSizedToTheMotionsKeepsVerticesAtTheirSpeed) {
   fixed.align_at_switch = false;
   const Worst before = worst_jump(graph, fixed);
   const Worst after = worst_jump(graph, CharacterOptions{});
-  std::printf("jump ratio: fixed 0.2 s fade %.2f, aligned and sized %.2f (fade up to %.2f s)\n",
-              before.ratio, after.ratio, after.fade);
+  CharacterOptions aligned_options;
+  aligned_options.align_at_switch = true;
+  const Worst aligned = worst_jump(graph, aligned_options);
+  std::printf("jump ratio: fixed 0.2 s fade %.2f, sized %.2f (fade up to %.2f s), sized and "
+              "aligned %.2f\n",
+              before.ratio, after.ratio, after.fade, aligned.ratio);
   EXPECT_GT(before.ratio, 1.5);
   EXPECT_LE(after.ratio, 1.5);
+  EXPECT_LE(aligned.ratio, 1.5);
   EXPECT_LT(after.ratio, before.ratio);
+  EXPECT_GT(after.fade, 0.2);
 }
 
 TEST(TransitionJump, TheMeterSeesTheLargestVertexStep) {
