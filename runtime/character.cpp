@@ -10,6 +10,7 @@
 
 #include "pipeline/core/error.h"
 #include "runtime/root_math.h"
+#include "runtime/transition_jump.h"
 
 namespace fourd {
 
@@ -104,6 +105,14 @@ void CharacterOptions::check() const {
   if (!(crossfade_seconds >= 0 && crossfade_seconds <= 5)) {
     throw ConfigError(fmt::format("crossfade_seconds {} must lie in [0, 5]", crossfade_seconds));
   }
+  if (!(crossfade_max_seconds >= 0 && crossfade_max_seconds <= 5)) {
+    throw ConfigError(
+        fmt::format("crossfade_max_seconds {} must lie in [0, 5]", crossfade_max_seconds));
+  }
+  if (!(crossfade_speed_share > 0 && crossfade_speed_share <= 100)) {
+    throw ConfigError(
+        fmt::format("crossfade_speed_share {} must lie in (0, 100]", crossfade_speed_share));
+  }
   if (!(one_shot_exit_t >= 0 && one_shot_exit_t <= 1)) {
     throw ConfigError(fmt::format("one_shot_exit_t {} must lie in [0, 1]", one_shot_exit_t));
   }
@@ -133,6 +142,18 @@ Character::Character(const MotionGraph& graph, const TransitionOptions& transiti
   const BlendSpace& blend = graph_.spaces.front().motion.blend;
   frame_.positions = make_blended_frame(blend);
   frame_.normals = make_blended_frame(blend);
+  scratch_a_ = make_blended_frame(blend);
+  scratch_b_ = make_blended_frame(blend);
+  // The motions' own vertex speeds, for the cross-fade's length.
+  for (int k = 0; k < num_spaces_; ++k) {
+    const GraphSpace& sp = graph_.spaces[k];
+    for (int i = 0; i < kSpeedSamples; ++i) {
+      const double p = sp.parameter_min() +
+                       (sp.parameter_max() - sp.parameter_min()) * i / (kSpeedSamples - 1);
+      speeds_[k][i] = static_cast<float>(
+          motion_displacement_p99(graph_, k, p, graph_.frame_time()) / graph_.frame_time());
+    }
+  }
   reset(0, graph_.spaces.front().parameter_min());
 }
 
@@ -283,6 +304,7 @@ bool Character::start_transition(int target, double p, double t) {
   s.path = path;
   s.played = 0;
   s.p_target = path.end.p;
+  s.holding = false;
   record_ = TransitionRecord{};
   record_.from = s.space;
   record_.to = hop;
@@ -312,6 +334,17 @@ void Character::plan_next() {
     const int back = s.return_space;
     s.return_space = -1;
     start_transition(back, s.return_p, -1);
+    return;
+  }
+  // Nothing comes next: the default successor, rather than freezing on the last frame.
+  if (!space.cyclic() && !s.holding) {
+    const int next = graph_.default_successor(s.space);
+    if (next < 0) {
+      s.holding = true;
+      return;
+    }
+    const GraphSpace& n = graph_.spaces[next];
+    if (!start_transition(next, 0.5 * (n.parameter_min() + n.parameter_max()), -1)) s.holding = true;
   }
 }
 
@@ -342,6 +375,72 @@ void Character::prepare_tick() {
   if (!request_.pending) plan_next();
 }
 
+double Character::motion_speed(int space, double p) const {
+  const GraphSpace& sp = graph_.spaces[space];
+  const double range = sp.parameter_max() - sp.parameter_min();
+  const double x = range > 0 ? std::clamp((p - sp.parameter_min()) / range, 0.0, 1.0) * (kSpeedSamples - 1)
+                             : 0.0;
+  const int i = std::min(static_cast<int>(x), kSpeedSamples - 2);
+  const double a = x - i;
+  return (1 - a) * speeds_[space][i] + a * speeds_[space][i + 1];
+}
+
+void Character::plan_fade(CharacterState* s) {
+  s->fade_align = RootPose{};
+  s->fade_seconds = options_.crossfade_seconds;
+  // The frames on both sides of the switch, each in its own root frame (the root is the same).
+  const GraphSpace& src = graph_.spaces[s->fade_space];
+  const GraphSpace& dst = graph_.spaces[s->space];
+  std::array<float, 3> w{};
+  BlendSources sources;
+  space_weights(src, s->fade_p, &w);
+  hybrid_blend_sources(src.motion.blend, s->fade_t, weights_span(src, w), &sources);
+  weighted_sum(sources, src.motion.blend.frame_stride(), scratch_a_.data.data());
+  space_weights(dst, s->p, &w);
+  hybrid_blend_sources(dst.motion.blend, s->t, weights_span(dst, w), &sources);
+  weighted_sum(sources, dst.motion.blend.frame_stride(), scratch_b_.data.data());
+  const int n = scratch_a_.num_vertices;
+  const float *px = scratch_a_.x(), *py = scratch_a_.y(), *pz = scratch_a_.z();
+  const float *qx = scratch_b_.x(), *qy = scratch_b_.y(), *qz = scratch_b_.z();
+  // The ground-plane rigid motion A that best fits the target's points q onto the source's p
+  // (least squares: centroids, then the rotation of the 2 x 2 cross-covariance).
+  RootPose a;
+  if (options_.align_at_switch && n > 0) {
+    double cpx = 0, cpy = 0, cqx = 0, cqy = 0;
+    for (int v = 0; v < n; ++v) cpx += px[v], cpy += py[v], cqx += qx[v], cqy += qy[v];
+    cpx /= n, cpy /= n, cqx /= n, cqy /= n;
+    double sxx = 0, sxy = 0, syx = 0, syy = 0;  // sum (q - cq) (p - cp)^T
+    for (int v = 0; v < n; ++v) {
+      const double ax = qx[v] - cqx, ay = qy[v] - cqy, bx = px[v] - cpx, by = py[v] - cpy;
+      sxx += ax * bx, sxy += ax * by, syx += ay * bx, syy += ay * by;
+    }
+    const double theta = std::atan2(sxy - syx, sxx + syy);
+    const double c = std::cos(theta), sn = std::sin(theta);
+    a = {static_cast<float>(cpx - (c * cqx - sn * cqy)), static_cast<float>(cpy - (sn * cqx + c * cqy)),
+         static_cast<float>(theta)};
+  }
+  // The largest gap left between the two frames.
+  const float c = std::cos(a.heading), sn = std::sin(a.heading);
+  double gap2 = 0;
+  for (int v = 0; v < n; ++v) {
+    const double dx = a.x + c * qx[v] - sn * qy[v] - px[v];
+    const double dy = a.y + sn * qx[v] + c * qy[v] - py[v];
+    const double dz = qz[v] - pz[v];
+    gap2 = std::max(gap2, dx * dx + dy * dy + dz * dz);
+  }
+  // The root takes the alignment on: the target drawn in the new root frame lands on the
+  // source; the source, still fading, is drawn in it through A^-1.
+  s->root = root_compose(s->root, a);
+  s->fade_align = root_inverse(a);
+  const double speed =
+      std::max(motion_speed(s->fade_space, s->fade_p), motion_speed(s->space, s->p));
+  if (speed > 0) {
+    const double wanted = 1.5 * std::sqrt(gap2) / (options_.crossfade_speed_share * speed);
+    s->fade_seconds = std::max(options_.crossfade_seconds,
+                               std::min(wanted, options_.crossfade_max_seconds));
+  }
+}
+
 void Character::advance(CharacterState* s, double seconds, bool commit) {
   for (int iteration = 0; iteration < 64; ++iteration) {
     // Boundaries first: a path's exit (switch) and end (arrival) may need no time at all.
@@ -359,6 +458,7 @@ void Character::advance(CharacterState* s, double seconds, bool commit) {
       s->p = path.entry.p;
       s->phase = PlayPhase::kTarget;
       s->played = 0;
+      if (s->fading) plan_fade(s);
       if (commit) {
         ++events_.switches;
         record_.switch_time = s->time;
@@ -422,13 +522,15 @@ void Character::advance(CharacterState* s, double seconds, bool commit) {
       const double pace_f = blended_seconds_per_t(fs.motion, s->fade_t, wfs);
       double dnf = pace_f > 0 ? used / pace_f : 0.0;
       if (!fs.cyclic()) dnf = std::min(dnf, 1 - s->fade_t);
-      const RootPose delta_f = root_delta(fs.motion, s->fade_t, dnf, wfs);
+      // The faded space's root motion, seen in the current root frame.
+      const RootPose delta_f = root_compose(
+          root_compose(s->fade_align, root_delta(fs.motion, s->fade_t, dnf, wfs)),
+          root_inverse(s->fade_align));
       s->fade_t = fs.cyclic() ? wrap01(s->fade_t + dnf) : std::min(1.0, s->fade_t + dnf);
-      const double beta =
-          smoothstep((s->fade_elapsed + 0.5 * used) / options_.crossfade_seconds);
+      const double beta = smoothstep((s->fade_elapsed + 0.5 * used) / s->fade_seconds);
       delta = root_lerp(delta_f, delta, static_cast<float>(beta));
       s->fade_elapsed += used;
-      if (s->fade_elapsed >= options_.crossfade_seconds) s->fading = false;
+      if (s->fade_elapsed >= s->fade_seconds) s->fading = false;
     }
 
     // Steering: half the turn before the segment's translation, half after (midpoint rule).
@@ -474,7 +576,7 @@ void Character::evaluate(const CharacterState& s) {
   BlendSources a, an;
   hybrid_blend_sources(space.motion.blend, s.t, weights_span(space, w), &a);
   const double beta =
-      s.fading && options_.crossfade_seconds > 0 ? smoothstep(s.fade_elapsed / options_.crossfade_seconds) : 1.0;
+      s.fading && s.fade_seconds > 0 ? smoothstep(s.fade_elapsed / s.fade_seconds) : 1.0;
   const std::size_t n = space.motion.blend.frame_stride();
   if (beta < 1) scale(&a, static_cast<float>(beta));
   to_normals(space, a, &an);
@@ -488,8 +590,31 @@ void Character::evaluate(const CharacterState& s) {
     hybrid_blend_sources(fs.motion.blend, s.fade_t, weights_span(fs, wf), &b);
     scale(&b, static_cast<float>(1 - beta));
     to_normals(fs, b, &bn);
-    accumulate_weighted_sum(b, n, frame_.positions.data.data());
-    accumulate_weighted_sum(bn, n, frame_.normals.data.data());
+    const RootPose& al = s.fade_align;
+    if (al.x == 0 && al.y == 0 && al.heading == 0) {
+      accumulate_weighted_sum(b, n, frame_.positions.data.data());
+      accumulate_weighted_sum(bn, n, frame_.normals.data.data());
+    } else {
+      // The faded blend drawn in the current root frame (positions moved, normals turned).
+      const float c = std::cos(al.heading), sn = std::sin(al.heading);
+      const float shift = static_cast<float>(1 - beta);
+      for (int pass = 0; pass < 2; ++pass) {
+        weighted_sum(pass == 0 ? b : bn, n, scratch_b_.data.data());
+        BlendedFrame& out = pass == 0 ? frame_.positions : frame_.normals;
+        const float tx = pass == 0 ? shift * al.x : 0.f, ty = pass == 0 ? shift * al.y : 0.f;
+        float* __restrict ox = out.data.data();
+        float* __restrict oy = ox + out.plane_stride;
+        float* __restrict oz = oy + out.plane_stride;
+        const float* x = scratch_b_.x();
+        const float* y = scratch_b_.y();
+        const float* z = scratch_b_.z();
+        for (int v = 0; v < out.num_vertices; ++v) {
+          ox[v] += c * x[v] - sn * y[v] + tx;
+          oy[v] += sn * x[v] + c * y[v] + ty;
+          oz[v] += z[v];
+        }
+      }
+    }
   }
   if (options_.normalize_normals) normalize_planes(&frame_.normals);
   frame_.textures.count = 0;

@@ -17,13 +17,23 @@
 // online path at the next tick: the source plays on to the path's exit while its parameter
 // ramps linearly to the exit's, then the character switches to the target at the path's entry
 // and plays to the requested state, ramping the parameter likewise. The switch is hidden by a
-// short cross-fade (options.crossfade_seconds, smoothstep): the source keeps playing from its
-// exit and its shape and root velocity fade into the target's, so neither the shape nor the
-// root pops. Requests made while a cross-fade runs wait for its end. A request with no direct
+// cross-fade (smoothstep): the source keeps playing from its exit and its shape and root
+// velocity fade into the target's, so neither the shape nor the root pops. The fade lasts long
+// enough that the fade itself moves no vertex faster than crossfade_speed_share of the faster
+// motion's own vertex speed (its 99th percentile, measured per space at construction): 1.5 D / T <= share v for
+// the largest vertex gap D between the two frames (smoothstep's steepest slope is 1.5 / T),
+// T between crossfade_seconds and crossfade_max_seconds. With align_at_switch (off by default)
+// the target is first aligned to the source: the ground-plane rotation and translation that
+// best fit the target's shape onto the source's, which the root takes on (the body does not
+// move; the root steps by the fit and keeps that small offset). Requests made while a cross-fade runs wait for its end. A request with no direct
 // edge follows the shortest route through the graph (precomputed at construction), one edge at
 // a time, passing through intermediate spaces at the middle of their parameter range. A one-shot
 // space plays to options.one_shot_exit_t and then starts the transition to what comes next (the
-// rest of a route, or back to the cyclic space it was entered from).
+// rest of a route, or back to the cyclic space it was entered from, at the parameter it played
+// there). With nothing to come (the character started in it, or came from another one-shot
+// space) it goes on to the graph's default successor (MotionGraph::default_successor) at the
+// middle of its parameter range, so the character never freezes on the last frame; only a
+// one-shot space with no way out holds its last pose.
 //
 // Parameters. set_parameters() sets the parameter the current motion (or the motion a
 // transition is heading to) ramps to, at (p_max - p_min) per unit of normalised time, the
@@ -54,7 +64,10 @@ namespace fourd {
 
 struct CharacterOptions {
   double tick_seconds = 1.0 / 240;    // [s] integration step in motion time
-  double crossfade_seconds = 0.2;     // [s] cross-fade at a transition's switch (0: none)
+  double crossfade_seconds = 0.2;     // [s] shortest cross-fade at a transition's switch (0: none)
+  double crossfade_max_seconds = 1.0; // [s] longest cross-fade (the fade's length adapts)
+  double crossfade_speed_share = 0.4; // the fade's own vertex speed / the motions' p99, at most
+  bool align_at_switch = false;       // fit the target's shape onto the source's at the switch (moves the root)
   double one_shot_exit_t = 0.75;      // normalised time at which a one-shot space plans its exit
   double max_turn_rate = 2.0;         // [rad/s] limit of set_turn_rate
   bool normalize_normals = true;      // unit normals out (else the raw blend)
@@ -110,12 +123,15 @@ struct CharacterState {
   int fade_space = -1;
   double fade_t = 0, fade_p = 0;
   double fade_elapsed = 0;  // [s]
+  double fade_seconds = 0;  // [s] length of this cross-fade
+  RootPose fade_align;      // the faded space's root frame in the current one
   // Where the character goes after the current motion: the end of a route, or back from a
   // one-shot space.
   int goal_space = -1;
   double goal_p = 0, goal_t = -1;
   int return_space = -1;  // cyclic space a one-shot space was entered from
   double return_p = 0;
+  bool holding = false;   // a one-shot space's way on was refused: hold its last pose
 };
 
 // Transition bookkeeping of one request, for logs (motion times in seconds).
@@ -212,6 +228,10 @@ class Character {
   bool start_transition(int target, double p, double t);
   void plan_next();
   void evaluate(const CharacterState& s);
+  // At a switch: the alignment and length of the cross-fade (see the top of this file).
+  void plan_fade(CharacterState* s);
+  // The 99th percentile of the vertex speed of `space` at parameter p [m/s].
+  double motion_speed(int space, double p) const;
   double clamp_p(int space, double p, bool* clamped) const;
   std::int64_t due_tick_now() const;
 
@@ -234,6 +254,10 @@ class Character {
   TransitionRecord record_;
   int clamps_ = 0;
   CharacterFrame frame_;
+  // Per space, the vertex speed p99 at kSpeedSamples parameters from min to max [m/s].
+  static constexpr int kSpeedSamples = 5;
+  std::array<std::array<float, kSpeedSamples>, 64> speeds_{};
+  BlendedFrame scratch_a_, scratch_b_;  // plan_fade's evaluations, the fading blend
 };
 
 // World positions of the frame (root applied): #V points into `out` (resized once).

@@ -105,6 +105,17 @@ int MotionGraph::find_edge(int from, int to) const {
   return -1;
 }
 
+int MotionGraph::default_successor(int space) const {
+  if (space < 0 || space >= static_cast<int>(spaces.size()) || spaces[space].cyclic()) return -1;
+  int any = -1;
+  for (const GraphEdge& e : edges) {
+    if (e.from != space || e.to == space) continue;
+    if (spaces[e.to].cyclic()) return e.to;
+    if (any < 0) any = e.to;
+  }
+  return any;
+}
+
 void MotionGraph::check() const {
   if (!(fps > 0) || !std::isfinite(fps)) {
     throw InputError(fmt::format("motion graph '{}': frame rate {} is not positive", name, fps));

@@ -127,6 +127,11 @@ struct MotionGraph {
   // -1 when absent.
   int find_space(const std::string& name) const;
   int find_edge(int from, int to) const;
+  // Where a one-shot space goes on when it ends with no request: the target of its first
+  // edge (in the order session.yaml lists the transitions) into a cyclic space, else of its
+  // first edge to another space; -1 for a cyclic space or one with no way out (it holds its
+  // last pose).
+  int default_successor(int space) const;
   // Every space's topology, edge indices and matrix sizes; throws InputError naming what is wrong.
   void check() const;
 };

@@ -13,6 +13,7 @@
 #include "pipeline/core/files.h"
 #include "pipeline/core/log.h"
 #include "pipeline/core/mesh_io.h"
+#include "runtime/transition_jump.h"
 
 namespace fourd {
 
@@ -72,8 +73,10 @@ class LineParser {
 std::string csv_escape(const std::string& s) { return s; }  // space names have no commas
 
 // One transition as a JSON line; times < 0 (null) when it was replaced before it got there.
+// `worst_step`: the largest per-frame vertex displacement from the request to the end of the
+// transition (its cross-fade included) [m], frames `frame_seconds` apart.
 std::string transition_json(const MotionGraph& graph, const TransitionOptions& search,
-                            const TransitionRecord& r) {
+                            const TransitionRecord& r, double worst_step, double frame_seconds) {
   const TransitionPath& path = r.path;
   auto time = [](double t) { return t >= 0 ? nlohmann::json(t) : nlohmann::json(nullptr); };
   nlohmann::json j;
@@ -96,6 +99,14 @@ std::string transition_json(const MotionGraph& graph, const TransitionOptions& s
   j["end"] = {{"t", path.end.t}, {"p", path.end.p}};
   j["search_us"] = r.search_seconds * 1e6;
   j["candidates"] = path.candidates;
+  // The lurch: the worst vertex step against the two motions' own (99th percentile).
+  const double source = motion_displacement_p99(graph, r.from, path.start.p, frame_seconds);
+  const double target = motion_displacement_p99(graph, r.to, path.end.p, frame_seconds);
+  const double reference = std::max(source, target);
+  j["max_vertex_step_mm"] = 1000 * worst_step;
+  j["source_step_p99_mm"] = 1000 * source;
+  j["target_step_p99_mm"] = 1000 * target;
+  j["jump_ratio"] = reference > 0 ? worst_step / reference : 0.0;
   return j.dump();
 }
 
@@ -310,6 +321,8 @@ PlayerReport run_player(const Asset& asset, const ControlScript& script,
   std::size_t next_event = 0;
   double last_switch = -1, written_request = -1;
   TransitionRecord open;  // the transition being played, not yet written
+  double open_step = 0;   // its worst per-frame vertex step so far [m]
+  VertexJumpMeter jump_meter;
   log::info("playing {:.2f} s at {} fps ({} frames), {} events{}", duration, fps, frames,
             script.events.size(), report.followed_path ? ", following a path" : "");
   for (int f = 0; f < frames; ++f) {
@@ -377,17 +390,21 @@ PlayerReport run_player(const Asset& asset, const ControlScript& script,
     report.max_search_seconds = std::max(report.max_search_seconds, events.search_seconds);
     report.refused += events.refused;
 
-    // A transition is written once it arrives or once a newer request replaces it.
+    // A transition is written once it arrives and its cross-fade is over, or once a newer
+    // request replaces it; its worst vertex step is measured until then.
+    const double step = jump_meter.add(character.frame());
     const TransitionRecord& r = character.last_transition();
     if (open.request_time >= 0 && r.request_time != open.request_time) {
-      transitions += transition_json(graph, search, open) + "\n";
+      transitions += transition_json(graph, search, open, open_step, 1 / fps) + "\n";
       ++report.transitions;
       open = TransitionRecord{};
     }
     if (r.request_time >= 0 && r.request_time != written_request) {
+      if (open.request_time != r.request_time) open_step = 0;
       open = r;
-      if (r.arrive_time >= 0) {
-        transitions += transition_json(graph, search, open) + "\n";
+      open_step = std::max(open_step, step);
+      if (r.arrive_time >= 0 && !character.state().fading) {
+        transitions += transition_json(graph, search, open, open_step, 1 / fps) + "\n";
         ++report.transitions;
         written_request = r.request_time;
         open = TransitionRecord{};
@@ -423,7 +440,7 @@ PlayerReport run_player(const Asset& asset, const ControlScript& script,
     if (report.followed_path && follow.done && options.duration < 0 && script.duration < 0) break;
   }
   if (open.request_time >= 0) {
-    transitions += transition_json(graph, search, open) + "\n";
+    transitions += transition_json(graph, search, open, open_step, 1 / fps) + "\n";
     ++report.transitions;
   }
   const FollowStatus& follow = controller.follow_status();

@@ -38,6 +38,10 @@ int main(int argc, char** argv) {
   app.add_flag("--no-meshes", no_meshes, "write the logs only");
   app.add_option("--crossfade", options.character.crossfade_seconds,
                  "cross-fade at a transition's switch [s]");
+  app.add_option("--crossfade-max", options.character.crossfade_max_seconds,
+                 "longest cross-fade [s] (the fade adapts to the gap at the switch)");
+  app.add_flag("--switch-alignment", options.character.align_at_switch,
+               "fit the target's shape onto the source's at a switch (the root takes the fit on)");
   app.add_option("--tick", options.character.tick_seconds, "integration tick [s]");
   app.add_option("--depth", options.transitions_depth, "trellis depth (default: the asset's)");
   RenderOptions render;

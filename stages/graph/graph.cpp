@@ -255,6 +255,18 @@ void run_graph(const Session& session, const StageArgs& args) {
                          {"height", textures.height},
                          {"keys", textures.empty() ? 0 : options.textures.keys},
                          {"jpeg_quality", textures.jpeg_quality}};
+  // Where each one-shot space goes when it ends with no request (the runtime's rule,
+  // MotionGraph::default_successor, over the asset's edges).
+  nlohmann::json successors = nlohmann::json::object();
+  for (int k = 0; k < static_cast<int>(asset.graph.spaces.size()); ++k) {
+    if (asset.graph.spaces[k].cyclic()) continue;
+    const int next = asset.graph.default_successor(k);
+    successors[asset.graph.spaces[k].name()] =
+        next >= 0 ? nlohmann::json(asset.graph.spaces[next].name()) : nlohmann::json(nullptr);
+    log::info("{}: ends into {} when nothing is requested", asset.graph.spaces[k].name(),
+              next >= 0 ? asset.graph.spaces[next].name() : "its last pose (no way out)");
+  }
+  summary["default_successors"] = successors;
   write_file_atomic(graph_dir / "graph.json", summary.dump(1));
   // Table 2 compares transition methods between two different spaces; a graph of one motion
   // class (self-loops only) has none, unless the session lists spaces (then it is an error).
@@ -274,6 +286,10 @@ void run_graph(const Session& session, const StageArgs& args) {
                 r.method, r.similarity_cost, r.played_similarity_cost, r.latency_cost,
                 r.latency_s, r.online_cpu_s, r.offline_cpu_s, r.answered, table.requests);
     }
+    log::info("Table 2, transitions played: worst per-frame vertex jump {:.1f} mm, {:.2f} (worst) "
+              "/ {:.2f} (median) x the motions' 99th percentile ({}/{} played)",
+              table.jumps.worst_displacement_mm, table.jumps.worst_ratio,
+              table.jumps.median_ratio, table.jumps.played, table.requests);
     write_file_atomic(graph_dir / "table2.json", table2_json(table).dump(1));
     log::info("Table 2: {} requests over {} edge(s) in {:.1f} s", table.requests,
               table.edges.size(), t2.seconds());

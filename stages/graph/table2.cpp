@@ -7,6 +7,7 @@
 #include <random>
 
 #include "pipeline/core/error.h"
+#include "runtime/transition_jump.h"
 #include "stages/graph/similarity.h"
 
 namespace fourd::graph {
@@ -66,7 +67,7 @@ double played_similarity_cost(const MotionGraph& graph, const TransitionPath& pa
 
 Table2 evaluate_table2(const MotionGraph& graph, const TransitionOptions& transitions,
                        const Table2Options& options, double similarity_cpu_s,
-                       double precompute_cpu_s) {
+                       double precompute_cpu_s, const CharacterOptions& character_options) {
   Table2 table;
   if (options.transitions <= 0) return table;
   const std::vector<int> edges = table_edges(graph, options);
@@ -140,6 +141,25 @@ Table2 evaluate_table2(const MotionGraph& graph, const TransitionOptions& transi
       });
     }
   }
+  // The requests played, as the runtime plays them.
+  Character character(graph, transitions, character_options);
+  table.jumps.depth = transitions.depth;
+  for (const Request& r : requests) {
+    const TransitionJump jump =
+        measure_transition_jump(character, r.from, r.to, graph.frame_time());
+    if (!jump.played) continue;
+    ++table.jumps.played;
+    table.jumps.ratios.push_back(jump.ratio());
+    table.jumps.worst_mm.push_back(1000 * jump.worst_m);
+    table.jumps.worst_ratio = std::max(table.jumps.worst_ratio, jump.ratio());
+    table.jumps.worst_displacement_mm = std::max(table.jumps.worst_displacement_mm, 1000 * jump.worst_m);
+  }
+  if (!table.jumps.ratios.empty()) {
+    std::vector<double> sorted = table.jumps.ratios;
+    std::sort(sorted.begin(), sorted.end());
+    const std::size_t n = sorted.size();
+    table.jumps.median_ratio = n % 2 ? sorted[n / 2] : 0.5 * (sorted[n / 2 - 1] + sorted[n / 2]);
+  }
   return table;
 }
 
@@ -161,6 +181,14 @@ nlohmann::json table2_json(const Table2& table) {
                          {"online_cpu_s", r.online_cpu_s},
                          {"offline_cpu_s", r.offline_cpu_s}});
   }
+  const Table2Jumps& k = table.jumps;
+  j["transition_jump"] = {{"depth", k.depth},
+                          {"played", k.played},
+                          {"worst_ratio", k.worst_ratio},
+                          {"median_ratio", k.median_ratio},
+                          {"worst_displacement_mm", k.worst_displacement_mm},
+                          {"ratios", k.ratios},
+                          {"worst_mm", k.worst_mm}};
   return j;
 }
 

@@ -8,13 +8,15 @@
 // E_S is reported two ways: as each method scores it (the online search uses the lower bound
 // of Eq. 3, the baseline the distance it stored), and measured the same way for both on the
 // frames actually played at the switch (cost_unit x d between the hybrid blends), so that the
-// methods are compared on what the viewer sees.
+// methods are compared on what the viewer sees. The requests are also played by a runtime
+// character, measuring the worst per-frame vertex jump of each transition (Table2Jumps).
 #include <cstdint>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
 #include "pipeline/core/config.h"
+#include "runtime/character.h"
 #include "runtime/motion_graph.h"
 #include "runtime/transition.h"
 
@@ -54,19 +56,33 @@ struct Table2Row {
   double offline_cpu_s = 0;           // precomputation the method needs [s]
 };
 
+// The requests played by a runtime character (the asset's search options, default character
+// options) at the capture frame rate: how far a vertex moves in one frame while each
+// transition plays, against the two motions' own speeds (runtime/transition_jump.h).
+struct Table2Jumps {
+  int depth = 0;                    // the online search's (the asset's)
+  int played = 0;                   // requests played to the end
+  std::vector<double> ratios;       // per played request, worst displacement / max p99
+  std::vector<double> worst_mm;     // per played request [mm]
+  double worst_ratio = 0, median_ratio = 0;
+  double worst_displacement_mm = 0;
+};
+
 struct Table2 {
   int requests = 0;
   std::vector<std::string> edges;  // "from -> to" evaluated
   std::vector<Table2Row> rows;     // online depths first, then the baseline
+  Table2Jumps jumps;
 };
 
 // `similarity_cpu_s`: offline CPU of the similarity matrices (what the online method needs);
 // `precompute_cpu_s`: of the baseline's n best transitions (it needs the matrices' features too,
 // so its offline time is the sum). Throws ConfigError for a space name the graph lacks or no
 // edge between the listed spaces.
+// `character`: how the requests are played (Table2Jumps).
 Table2 evaluate_table2(const MotionGraph& graph, const TransitionOptions& transitions,
                        const Table2Options& options, double similarity_cpu_s,
-                       double precompute_cpu_s);
+                       double precompute_cpu_s, const CharacterOptions& character = {});
 
 nlohmann::json table2_json(const Table2& table);
 

@@ -148,114 +148,206 @@ double shape_distance(const Eigen::Matrix3Xd& a, const Eigen::Matrix3Xd& b) {
   return (a - b).colwise().squaredNorm().mean();
 }
 
-Cycle find_cycle(const LocalTake& take, const CycleOptions& options) {
-  const int n = take.num_frames();
-  if (n - 1 < options.min_cycle_frames || n < 3) {
-    throw InputError(fmt::format("take {}: {} frames cannot hold a cycle of at least {} frames",
-                                 take.name, n, std::max(options.min_cycle_frames, 2)));
-  }
-  const double eps = 1e-9;
-  auto velocity_weight = [](double lag) { return std::pow(lag / (2 * std::numbers::pi), 2); };
+namespace {
+
+// Scores cycles of one take: the state (shape and velocity) distance between the frames at
+// both ends of a candidate cycle, and the cycle's own variation.
+class CycleScorer {
+ public:
+  explicit CycleScorer(const LocalTake& take) : take_(take), n_(take.num_frames()) {}
+
+  int frames() const { return n_; }
+  static double velocity_weight(double lag) { return std::pow(lag / (2 * std::numbers::pi), 2); }
+
   // Velocity at (fractional) frame x by one finite-difference stencil: 0 central, 1 forward,
   // -1 backward. The two ends of a cycle are compared with the same stencil, so that its error
   // (large for fast limbs at a low frame rate) cancels.
-  auto velocity = [&](double x, int kind) {
-    if (kind == 0) return Eigen::Matrix3Xd(0.5 * (shape_at(take, x + 1) - shape_at(take, x - 1)));
-    if (kind > 0) return Eigen::Matrix3Xd(shape_at(take, x + 1) - shape_at(take, x));
-    return Eigen::Matrix3Xd(shape_at(take, x) - shape_at(take, x - 1));
+  Eigen::Matrix3Xd velocity(double x, int kind) const {
+    if (kind == 0) return 0.5 * (shape_at(take_, x + 1) - shape_at(take_, x - 1));
+    if (kind > 0) return shape_at(take_, x + 1) - shape_at(take_, x);
+    return shape_at(take_, x) - shape_at(take_, x - 1);
+  }
+
+  struct Closure {
+    double shape = 0, velocity = 0;
+    double total(double w) const { return shape + w * velocity; }
   };
   // State distance between frame s and the state at s + p: shape, plus velocity. Where no
   // stencil fits at both ends (the cycle spans the whole take), the velocities are compared
   // across the seam: forward at the start minus backward at the end is, for a smooth join, the
   // second difference there, estimated from the neighbouring frames on both sides.
-  struct Closure {
-    double shape = 0, velocity = 0;
-    bool has_velocity = false;
-    double total(double w) const { return shape + w * velocity; }
-  };
-  auto closure = [&](int s, double p) {
+  Closure closure(int s, double p) const {
     Closure c;
-    c.shape = shape_distance(take.shapes[s], shape_at(take, s + p));
-    const bool before = s >= 1, after = s + p + 1 <= n - 1 + eps;
+    c.shape = shape_distance(take_.shapes[s], shape_at(take_, s + p));
+    const bool before = s >= 1, after = s + p + 1 <= n_ - 1 + kEps;
     if (before || after) {
       const int kind = before && after ? 0 : after ? 1 : -1;
       c.velocity = shape_distance(velocity(s, kind), velocity(s + p, kind));
     } else {
-      const Eigen::Matrix3Xd x0 = take.shapes[s], x1 = shape_at(take, s + 1),
-                             x2 = shape_at(take, s + 2), y0 = shape_at(take, s + p),
-                             y1 = shape_at(take, s + p - 1), y2 = shape_at(take, s + p - 2);
+      const Eigen::Matrix3Xd x0 = take_.shapes[s], x1 = shape_at(take_, s + 1),
+                             x2 = shape_at(take_, s + 2), y0 = shape_at(take_, s + p),
+                             y1 = shape_at(take_, s + p - 1), y2 = shape_at(take_, s + p - 2);
       const Eigen::Matrix3Xd jump = (x1 - x0) - (y0 - y1);
       c.velocity = shape_distance(jump, 0.5 * ((x2 - 2 * x1 + x0) + (y0 - 2 * y1 + y2)));
     }
-    c.has_velocity = true;
     return c;
-  };
+  }
+
   // Mean state distance between frames p apart, over every start that fits.
-  auto mean_at = [&](double p) {
+  double mean_at(double p) const {
     double sum = 0;
     int count = 0;
-    for (int s = 0; s + p <= n - 1 + eps; ++s, ++count) sum += closure(s, p).total(velocity_weight(p));
+    for (int s = 0; s + p <= n_ - 1 + kEps; ++s, ++count) sum += closure(s, p).total(velocity_weight(p));
     return count ? sum / count : kInf;
-  };
-  std::vector<double> mean_at_lag(n, kInf);
-  double lo = kInf, hi = 0;
-  for (int lag = options.min_cycle_frames; lag <= n - 1; ++lag) {
-    mean_at_lag[lag] = mean_at(lag);
-    lo = std::min(lo, mean_at_lag[lag]);
-    hi = std::max(hi, mean_at_lag[lag]);
   }
-  // The shortest lag at a local minimum close to the best: one cycle, not two.
-  int period = -1;
-  for (int lag = options.min_cycle_frames + 1; lag <= n - 1 && period < 0; ++lag) {
-    const bool local_min = mean_at_lag[lag] <= mean_at_lag[lag - 1] &&
-                           (lag == n - 1 || mean_at_lag[lag] <= mean_at_lag[lag + 1]);
-    if (local_min && mean_at_lag[lag] <= lo + 0.2 * (hi - lo)) period = lag;
-  }
-  if (period < 0) {
-    period = static_cast<int>(std::min_element(mean_at_lag.begin(), mean_at_lag.end()) -
-                              mean_at_lag.begin());
-  }
-  // Fractional period.
-  const double step = 0.1;
-  double best_p = period, best = mean_at(period);
-  for (double p = period - 1 + step; p < period + 1 - eps; p += step) {
-    if (p < options.min_cycle_frames || p > n - 1 + eps) continue;
-    const double c = mean_at(p);
-    if (c < best) best = c, best_p = p;
-  }
-  const double a = mean_at(best_p - step), c = mean_at(best_p + step);
-  if (std::isfinite(a) && std::isfinite(c)) best_p += step * parabola_vertex(a, best, c);
-  best_p = std::min(best_p, n - 1.0);
 
-  Cycle cycle;
-  cycle.period = best_p;
-  Closure best_closure;
-  double best_total = kInf;
-  for (int s = 0; s + best_p <= n - 1 + eps; ++s) {
-    const Closure cl = closure(s, best_p);
-    if (cl.total(velocity_weight(best_p)) < best_total) {
-      best_total = cl.total(velocity_weight(best_p));
-      best_closure = cl;
-      cycle.start = s;
-    }
+  // The same over the better half of the starts: robust to the stretches of a long take that
+  // do not repeat (a pause, a turn), whose pairs would pollute the mean at every lag.
+  double lower_half_at(double p) const {
+    std::vector<double> d;
+    for (int s = 0; s + p <= n_ - 1 + kEps; ++s) d.push_back(closure(s, p).total(velocity_weight(p)));
+    if (d.empty()) return kInf;
+    const std::size_t half = (d.size() + 1) / 2;
+    std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(half - 1), d.end());
+    double sum = 0;
+    for (std::size_t k = 0; k < half; ++k) sum += d[k];
+    return sum / static_cast<double>(half);
   }
-  cycle.closure_rms = std::sqrt(best_closure.shape);
-  // Variation of shape and (central) velocity over the cycle's frames.
-  const int first = static_cast<int>(cycle.start);
-  const int last = static_cast<int>(std::floor(cycle.start + cycle.period + eps));
-  Eigen::Matrix3Xd mean_x = Eigen::Matrix3Xd::Zero(3, take.shapes[0].cols());
-  Eigen::Matrix3Xd mean_v = mean_x;
-  std::vector<Eigen::Matrix3Xd> v;
-  for (int f = std::max(first, 1); f <= std::min(last, n - 2); ++f) v.push_back(velocity(f, 0));
-  for (int f = first; f <= last; ++f) mean_x += take.shapes[f] / (last - first + 1);
-  for (const auto& x : v) mean_v += x / static_cast<double>(v.size());
-  double var_x = 0, var_v = 0;
-  for (int f = first; f <= last; ++f) var_x += shape_distance(take.shapes[f], mean_x) / (last - first + 1);
-  for (const auto& x : v) var_v += shape_distance(x, mean_v) / static_cast<double>(v.size());
-  cycle.variation_rms = std::sqrt(var_x);
-  const double w = velocity_weight(best_p);
-  const double variation = best_closure.has_velocity && !v.empty() ? var_x + w * var_v : var_x;
-  cycle.closure_ratio = variation > 0 ? std::sqrt(best_closure.total(w) / variation) : kInf;
+
+  // The cycle [s, s + p] with its closure and variation.
+  Cycle evaluate(int s, double p) const {
+    Cycle cycle;
+    cycle.start = s;
+    cycle.period = p;
+    const Closure cl = closure(s, p);
+    cycle.closure_rms = std::sqrt(cl.shape);
+    // Variation of shape and (central) velocity over the cycle's frames.
+    const int first = s;
+    const int last = std::min(static_cast<int>(std::floor(s + p + kEps)), n_ - 1);
+    Eigen::Matrix3Xd mean_x = Eigen::Matrix3Xd::Zero(3, take_.shapes[0].cols());
+    Eigen::Matrix3Xd mean_v = mean_x;
+    std::vector<Eigen::Matrix3Xd> v;
+    for (int f = std::max(first, 1); f <= std::min(last, n_ - 2); ++f) v.push_back(velocity(f, 0));
+    for (int f = first; f <= last; ++f) mean_x += take_.shapes[f] / (last - first + 1);
+    for (const auto& x : v) mean_v += x / static_cast<double>(v.size());
+    double var_x = 0, var_v = 0;
+    for (int f = first; f <= last; ++f) var_x += shape_distance(take_.shapes[f], mean_x) / (last - first + 1);
+    for (const auto& x : v) var_v += shape_distance(x, mean_v) / static_cast<double>(v.size());
+    cycle.variation_rms = std::sqrt(var_x);
+    const double w = velocity_weight(p);
+    const double variation = !v.empty() ? var_x + w * var_v : var_x;
+    cycle.closure_ratio = variation > 0 ? std::sqrt(cl.total(w) / variation) : kInf;
+    return cycle;
+  }
+
+  // Fractional refinement of a period around p0 (+-radius frames, 0.1 steps and a parabola).
+  double refine(double p0, double radius, double lowest) const {
+    const double step = 0.1;
+    double best_p = p0, best = mean_at(p0);
+    for (double p = p0 - radius + step; p < p0 + radius - kEps; p += step) {
+      if (p < lowest || p > n_ - 1 + kEps) continue;
+      const double c = mean_at(p);
+      if (c < best) best = c, best_p = p;
+    }
+    const double a = mean_at(best_p - step), c = mean_at(best_p + step);
+    if (std::isfinite(a) && std::isfinite(c)) best_p += step * parabola_vertex(a, best, c);
+    return std::min(best_p, n_ - 1.0);
+  }
+
+ private:
+  static constexpr double kEps = 1e-9;
+  const LocalTake& take_;
+  int n_;
+};
+
+void check_cycle_length(const LocalTake& take, const CycleOptions& options) {
+  const int n = take.num_frames();
+  if (n - 1 < options.min_cycle_frames || n < 3) {
+    throw InputError(fmt::format("take {}: {} frames cannot hold a cycle of at least {} frames",
+                                 take.name, n, std::max(options.min_cycle_frames, 2)));
+  }
+}
+
+double find_period(const CycleScorer& scorer, const CycleOptions& options) {
+  const int n = scorer.frames();
+  std::vector<double> m(n, kInf);
+  double lo = kInf;
+  for (int lag = options.min_cycle_frames; lag <= n - 1; ++lag) {
+    m[lag] = scorer.lower_half_at(lag);
+    lo = std::min(lo, m[lag]);
+  }
+  auto local_min = [&](int lag) {
+    return lag > options.min_cycle_frames && lag <= n - 1 && m[lag] <= m[lag - 1] &&
+           (lag == n - 1 || m[lag] <= m[lag + 1]);
+  };
+  // The lowest local minimum: one period or a multiple of it.
+  int best = -1;
+  for (int lag = options.min_cycle_frames + 1; lag <= n - 1; ++lag) {
+    if (local_min(lag) && (best < 0 || m[lag] < m[best])) best = lag;
+  }
+  if (best < 0) {
+    best = static_cast<int>(std::min_element(m.begin(), m.end()) - m.begin());
+    return scorer.refine(best, 1, options.min_cycle_frames);
+  }
+  // The lowest mean distance near x: at the lowest integer local minimum within +-radius of
+  // x, refined to a fraction of a frame (an integer lag near a non-integer period repeats
+  // worse than an integer multiple of it). Infinite if there is none.
+  struct Near {
+    double lag = -1, mean = kInf;
+  };
+  auto minimum_near = [&](double x) {
+    const double radius = std::max(1.0, 0.12 * x);
+    int found = -1;
+    for (int lag = static_cast<int>(std::ceil(x - radius));
+         lag <= static_cast<int>(std::floor(x + radius)); ++lag) {
+      if (lag >= 0 && lag < n && local_min(lag) && (found < 0 || m[lag] < m[found])) found = lag;
+    }
+    Near near;
+    if (found < 0) return near;
+    near.lag = scorer.refine(found, 1, options.min_cycle_frames);
+    near.mean = std::min(m[found], scorer.lower_half_at(near.lag));
+    return near;
+  };
+  // A sub-multiple f = best / k is the period if the state repeats there about as well as at
+  // `best`: within half as much again, plus 2 % of the range of the mean distance over the
+  // lags up to f (longer lags weigh the velocity more, which inflates the range). A motion
+  // whose shape nearly repeats at half its period (a quadruped's limb pairs in antiphase, a
+  // walk's mirrored steps) repeats clearly worse at the half.
+  const double best_mean = minimum_near(best).mean;
+  double period = best;
+  for (int k = 2; best / static_cast<double>(k) >= options.min_cycle_frames; ++k) {
+    const double f = best / static_cast<double>(k);
+    const Near at = minimum_near(f);
+    double range = 0;
+    for (int lag = options.min_cycle_frames; lag <= std::min(n - 1, static_cast<int>(f) + 1); ++lag) {
+      range = std::max(range, m[lag] - lo);
+    }
+    if (at.mean <= 1.5 * best_mean + 0.02 * range) period = at.lag;
+  }
+  return scorer.refine(period, 1, options.min_cycle_frames);
+}
+
+}  // namespace
+
+double find_period(const LocalTake& take, const CycleOptions& options) {
+  check_cycle_length(take, options);
+  return find_period(CycleScorer(take), options);
+}
+
+Cycle find_cycle(const LocalTake& take, const CycleOptions& options) {
+  check_cycle_length(take, options);
+  const CycleScorer scorer(take);
+  const double period = find_period(scorer, options);
+  const int n = take.num_frames();
+  // The start where the cycle closes best.
+  int start = 0;
+  double best_total = kInf;
+  const double w = CycleScorer::velocity_weight(period);
+  for (int s = 0; s + period <= n - 1 + 1e-9; ++s) {
+    const double total = scorer.closure(s, period).total(w);
+    if (total < best_total) best_total = total, start = s;
+  }
+  const Cycle cycle = scorer.evaluate(start, period);
   if (!(cycle.closure_ratio <= options.max_closure_ratio)) {
     throw InputError(fmt::format(
         "take {}: cannot close a cycle: the best cycle (frames {:.2f} to {:.2f}, {:.2f} frames) "
@@ -266,6 +358,59 @@ Cycle find_cycle(const LocalTake& take, const CycleOptions& options) {
         100 * cycle.closure_ratio, 100 * options.max_closure_ratio));
   }
   return cycle;
+}
+
+TakeSegments find_cycles(const LocalTake& take, const CycleOptions& options) {
+  TakeSegments out;
+  const int n = take.num_frames();
+  auto whole_take_one_shot = [&] {
+    out.cycles.clear();
+    out.one_shots = {{0, n - 1}};
+  };
+  if (n - 1 < options.min_cycle_frames || n < 3) {
+    if (n >= 2) whole_take_one_shot();
+    return out;
+  }
+  const CycleScorer scorer(take);
+  out.period = find_period(scorer, options);
+  // Every start's best closing cycle, its length within 15 % of the period (a long take's pace
+  // drifts).
+  std::vector<Cycle> candidates;
+  const double radius = std::max(1.0, 0.15 * out.period);
+  for (int s = 0; s + options.min_cycle_frames <= n - 1; ++s) {
+    double best_p = -1, best = kInf;
+    for (double p = out.period - radius; p <= out.period + radius + 1e-9; p += 0.25) {
+      if (p < options.min_cycle_frames || s + p > n - 1 + 1e-9) continue;
+      const double c = scorer.closure(s, p).total(CycleScorer::velocity_weight(p));
+      if (c < best) best = c, best_p = p;
+    }
+    if (best_p < 0) continue;
+    const Cycle c = scorer.evaluate(s, best_p);
+    if (c.closure_ratio <= options.max_closure_ratio) candidates.push_back(c);
+  }
+  // The best closing cycles first, none overlapping another (they may share an end frame).
+  std::sort(candidates.begin(), candidates.end(),
+            [](const Cycle& a, const Cycle& b) { return a.closure_ratio < b.closure_ratio; });
+  for (const Cycle& c : candidates) {
+    bool overlaps = false;
+    for (const Cycle& k : out.cycles) {
+      overlaps = overlaps || (c.start < k.start + k.period - 0.5 && k.start < c.start + c.period - 0.5);
+    }
+    if (!overlaps) out.cycles.push_back(c);
+  }
+  std::sort(out.cycles.begin(), out.cycles.end(),
+            [](const Cycle& a, const Cycle& b) { return a.start < b.start; });
+  // What no cycle covers, in whole frames, as one-shot segments.
+  int next = 0;
+  auto gap = [&](int first, int last) {
+    if (last - first >= options.min_cycle_frames) out.one_shots.push_back({first, last});
+  };
+  for (const Cycle& c : out.cycles) {
+    gap(next, static_cast<int>(std::floor(c.start)));
+    next = static_cast<int>(std::ceil(c.start + c.period - 1e-9));
+  }
+  gap(next, n - 1);
+  return out;
 }
 
 double TakeTiming::frame_at(double u) const {

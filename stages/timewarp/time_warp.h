@@ -57,11 +57,35 @@ struct Cycle {
   double closure_ratio = 0;  // state closure / state variation over the cycle
 };
 
-// The best complete cycle of a cyclic take: the period minimises the mean state distance
-// between frames one period apart (refined to a fraction of a frame), the start the closure
-// distance. Throws InputError naming the take if it is shorter than min_cycle_frames + 1 frames
-// or its best cycle cannot be closed (closure_ratio above max_closure_ratio).
+// The period of a take [frames, fractional], from all of it: the lag at which the state
+// (shape and velocity) repeats best on average over every pair of frames that lag apart, taken
+// down to the shortest sub-multiple at which the state repeats about as well (and at every
+// multiple of it the take holds), so that a motion whose shape nearly repeats at half its
+// period (a quadruped's limb pairs in antiphase) is not cut at the half; then refined to a
+// fraction of a frame. Throws InputError naming the take if it is shorter than
+// min_cycle_frames + 1 frames.
+double find_period(const LocalTake& take, const CycleOptions& options);
+
+// The best complete cycle of a cyclic take: find_period's period, started where the closure
+// distance is smallest. Throws InputError naming the take if it is shorter than
+// min_cycle_frames + 1 frames or its best cycle cannot be closed (closure_ratio above
+// max_closure_ratio).
 Cycle find_cycle(const LocalTake& take, const CycleOptions& options);
+
+// A long take cut into what loops and what does not: every good cycle (closure_ratio at most
+// max_closure_ratio; each start's best length within 15 % of the period, as a long take's pace
+// drifts; the best closing first, none overlapping another), and the frames between them
+// (at least min_cycle_frames long) as one-shot segments. A take too short for a cycle, or
+// without one, is one one-shot segment. Does not throw.
+struct FrameRange {
+  int first = 0, last = 0;  // frames, inclusive
+};
+struct TakeSegments {
+  double period = 0;               // find_period's (0: the take is too short)
+  std::vector<Cycle> cycles;       // by start frame
+  std::vector<FrameRange> one_shots;
+};
+TakeSegments find_cycles(const LocalTake& take, const CycleOptions& options);
 
 // Where a take's phase lives in its frames (see the top of this file).
 struct TakeTiming {

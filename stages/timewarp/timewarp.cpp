@@ -253,12 +253,17 @@ void run_timewarp(const Session& session, const StageArgs& args) {
             input.template_mesh.num_triangles(), body_height(templ));
 
   StagedFolder staged(out);
+  nlohmann::json report = {{"classes", nlohmann::json::array()}};
   for (const MotionClassConfig& motion : config.motions) {
     log::Timer timer;
     std::vector<LocalTake> takes;
     for (const std::string& name : motion.takes) {
       takes.push_back(make_local_take(name, load_take(input, name), templ, torso, options.root_smoothing));
     }
+    std::vector<TakeSegments> segments(takes.size());
+    tbb::parallel_for(std::size_t{0}, takes.size(), [&](std::size_t k) {
+      segments[k] = find_cycles(takes[k], options.cycle());
+    });
     const WarpedClass warped = warp_class(motion, config.fps, input.template_mesh,
                                           std::move(takes), options);
     write_warped_class(staged.path() / (motion.name + ".twarp"), warped);
@@ -278,9 +283,23 @@ void run_timewarp(const Session& session, const StageArgs& args) {
                   t.num_frames, t.seconds.back(), std::hypot(end.x(), end.y()));
       }
     }
+    nlohmann::json report_class = {{"name", motion.name}, {"cyclic", motion.cyclic}};
+    report_class["takes"] = nlohmann::json::array();
+    for (std::size_t k = 0; k < warped.takes.size(); ++k) {
+      const TakeSegments& seg = segments[k];
+      report_class["takes"].push_back(take_segments_json(warped.takes[k].name,
+                                                         warped.takes[k].num_frames, seg,
+                                                         warped.cyclic ? &warped.takes[k].cycle
+                                                                       : nullptr));
+      log::info("{} / {}: period {:.2f} frames, {} cycle(s) that close, {} one-shot segment(s)",
+                motion.name, warped.takes[k].name, seg.period, seg.cycles.size(),
+                seg.one_shots.size());
+    }
+    report["classes"].push_back(std::move(report_class));
     log::info("{}: {} takes registered, {} samples ({:.1f} s)", motion.name, warped.takes.size(),
               warped.num_samples, timer.seconds());
   }
+  write_file_atomic(staged.path() / "report.json", report.dump(1) + "\n");
   YAML::Emitter emitter;
   emitter << to_yaml(options);
   write_file_atomic(staged.path() / "options.yaml", std::string(emitter.c_str()) + "\n");

@@ -8,6 +8,7 @@
 // Writes, per class, into timewarp/ (timewarp_oracle/ in oracle mode):
 //   <class>.twarp   the resampled class (timewarp_io.h), read by the motionspace stage
 //   <class>.json    per take: cycle, phase offset, the t of every captured frame, root motion
+//   report.json     per class and take: period, every cycle that closes, one-shot segments
 // and options.yaml (the options used). Every class is computed before anything is written, and
 // the folder is replaced as a whole, so a failure leaves the previous outputs untouched.
 #include <Eigen/Core>

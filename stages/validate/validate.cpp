@@ -104,6 +104,7 @@ const std::vector<ValidatorEntry>& validators() {
       {"timewarp", validate_timewarp},
       {"blend", validate_blend},
       {"transitions", validate_transitions},
+      {"graph", validate_graph},
       {"paths", validate_paths},
       {"texture", validate_texture},
   };

@@ -108,6 +108,9 @@ StageReport validate_timewarp(const ValidationContext& context);
 StageReport validate_blend(const ValidationContext& context);
 // Motion graph: Table 2 from graph/table2.json (transitions.*).
 StageReport validate_transitions(const ValidationContext& context);
+// Transitions as played: the jump ratio of the Table 2 requests played by a character
+// (graph.transition_jump_ratio_worst / _median, graph.transition_jump_worst_mm).
+StageReport validate_graph(const ValidationContext& context);
 // Textures: texture/ and texture_oracle/ rendered into the studio cameras against the captured
 // images inside the ground-truth silhouettes (texture.psnr_db), unseen texels, seams, time
 // (validate_texture.cpp).

@@ -211,4 +211,37 @@ StageReport validate_transitions(const ValidationContext& ctx) {
   return report;
 }
 
+StageReport validate_graph(const ValidationContext& ctx) {
+  StageReport report;
+  const std::vector<RunFolder> runs = run_folders(ctx.session, "graph", "table2.json");
+  report.summary = "Transitions as the runtime plays them: the Table 2 requests played by a "
+                   "character at the capture frame rate; per transition, the worst per-frame "
+                   "vertex displacement over the larger of the two motions' own 99th-percentile "
+                   "per-frame displacement (1: no vertex moves faster than in the captured "
+                   "motions).";
+  for (const RunFolder& run : runs) {
+    const json t2 = read_json(run.dir / "table2.json");
+    if (!t2.contains("transition_jump")) continue;
+    const json& j = t2.at("transition_jump");
+    if (j.at("played").get<int>() == 0) continue;
+    report.present = true;
+    const double worst = j.at("worst_ratio").get<double>();
+    const double median = j.at("median_ratio").get<double>();
+    const double worst_mm = j.at("worst_displacement_mm").get<double>();
+    report.metrics.push_back({"transition_jump_ratio_worst", worst, run.input,
+                              "worst per-frame vertex jump during a transition / the motions' p99"});
+    report.metrics.push_back({"transition_jump_ratio_median", median, run.input,
+                              "median over the transitions of the same ratio"});
+    report.metrics.push_back({"transition_jump_worst_mm", worst_mm, run.input,
+                              "worst per-frame vertex displacement during a transition [mm]"});
+    report.details += fmt::format(
+        "**{}**: {} of {} requests played (online search, depth {}): jump ratio worst {:.2f}, "
+        "median {:.2f}; worst displacement {:.1f} mm per frame.\n\n",
+        run.label, j.at("played").get<int>(), t2.at("requests").get<int>(),
+        j.at("depth").get<int>(), worst, median, worst_mm);
+  }
+  if (!report.present) report.summary = "Skipped: no graph/table2.json with played transitions.";
+  return report;
+}
+
 }  // namespace fourd::validate

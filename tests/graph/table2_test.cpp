@@ -36,6 +36,12 @@ TEST(Table2, EveryMethodAnswersAndDeeperTrellisesNeverCostMore) {
     EXPECT_LE(table.rows[k].similarity_cost + table.rows[k].latency_cost,
               table.rows[k - 1].similarity_cost + table.rows[k - 1].latency_cost + 1e-6);
   }
+  // Every request played by a character, its worst vertex jump within 1.5 x the motions' own.
+  EXPECT_EQ(table.jumps.played, 30);
+  EXPECT_EQ(table.jumps.ratios.size(), 30u);
+  EXPECT_GT(table.jumps.median_ratio, 0);
+  EXPECT_LE(table.jumps.median_ratio, table.jumps.worst_ratio);
+  EXPECT_LE(table.jumps.worst_ratio, 1.5);
   EXPECT_DOUBLE_EQ(table.rows[0].offline_cpu_s, 1.5);
   EXPECT_DOUBLE_EQ(table.rows[3].offline_cpu_s, 5.5);
   // The same seed gives the same requests.

@@ -595,3 +595,31 @@ TEST(GroundPath, RejectsBrokenPaths) {
 
 }  // namespace
 }  // namespace fourd
+
+namespace fourd {
+namespace {
+
+// A one-shot space that ends with no request goes on to the graph's default successor (here
+// the locomotion it has an edge to) instead of freezing on its last frame.
+TEST(Character, AOneShotSpaceEndingWithNoRequestGoesOnToItsDefaultSuccessor) {
+  const MotionGraph graph = test::make_test_graph();
+  const int jump = graph.find_space("jump_length"), loco = graph.find_space("locomotion");
+  EXPECT_EQ(graph.default_successor(jump), loco);
+  EXPECT_EQ(graph.default_successor(loco), -1);  // cyclic: it loops
+  Character character(graph, TransitionOptions{});
+  character.reset(jump, 0.9, 0.0);
+  double last_x = 0;
+  for (int f = 0; f < 150; ++f) {  // 6 s at 25 fps: the jump lasts about 1.3 s
+    last_x = character.frame().root.x;
+    character.step(0.04);
+  }
+  EXPECT_EQ(character.state().space, loco);
+  EXPECT_EQ(character.state().phase, PlayPhase::kFree);
+  // Still walking: the root moves on, at about the middle of the speed range's pace.
+  EXPECT_GT(character.frame().root.x - last_x, 0.01);
+  EXPECT_EQ(character.last_transition().from, jump);
+  EXPECT_EQ(character.last_transition().to, loco);
+}
+
+}  // namespace
+}  // namespace fourd

@@ -139,6 +139,14 @@ TEST(Player, WritesMeshesAndLogs) {
   EXPECT_EQ(t["to"], "jump_length");
   EXPECT_GE(t["latency_s"].get<double>(), 0.0);
   EXPECT_GE(t["switch_time_s"].get<double>(), 1.0);
+  // The transition's worst vertex step, against the motions' own.
+  EXPECT_GT(t["max_vertex_step_mm"].get<double>(), 0.0);
+  EXPECT_GT(t["source_step_p99_mm"].get<double>(), 0.0);
+  EXPECT_NEAR(t["jump_ratio"].get<double>(),
+              t["max_vertex_step_mm"].get<double>() /
+                  std::max(t["source_step_p99_mm"].get<double>(), t["target_step_p99_mm"].get<double>()),
+              1e-9);
+  EXPECT_LE(t["jump_ratio"].get<double>(), 1.5);
   const nlohmann::json summary = nlohmann::json::parse(read_file(o.out_dir / "summary.json"));
   EXPECT_EQ(summary["frames"], 61);
 }
