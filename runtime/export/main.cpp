@@ -78,7 +78,7 @@ int main(int argc, char** argv) {
     if (!take.empty() && sequence_dir.empty())
       throw UsageError("--take is for --sequence");
     // An output folder that cannot be made fails now, not after the work.
-    for (const std::filesystem::path out : {std::filesystem::path(out_path).parent_path(),
+    for (const std::filesystem::path& out : {std::filesystem::path(out_path).parent_path(),
                                             std::filesystem::path(sequence_dir).parent_path()})
       if (!out.empty()) ensure_directory(out);
     const Asset asset = load_asset(asset_path);

@@ -22,7 +22,9 @@ TEST(Table2, EveryMethodAnswersAndDeeperTrellisesNeverCostMore) {
   EXPECT_FALSE(table.edges.empty());
   for (const Table2Row& row : table.rows) {
     SCOPED_TRACE(row.method);
-    if (row.n == 0 || !row.rate_limited) EXPECT_GT(row.answered, 0);
+    if (row.n == 0 || !row.rate_limited) {
+      EXPECT_GT(row.answered, 0);
+    }
     EXPECT_GE(row.played_similarity_cost, 0);
     EXPECT_GE(row.latency_s, 0);
     EXPECT_NEAR(row.latency_cost, transitions.lambda * row.latency_s * graph.fps, 1e-6);
