@@ -40,7 +40,9 @@ std::optional<Subject> read_subject(const fs::path& dir) {
     throw InputError(fmt::format("{}: subject size {} m, scale factor {}: not positive",
                                  file.string(), s.size, s.factor));
   }
-  s.source = file.string();
+  // Named relative to the session (not its location), so that options.yaml is the same
+  // wherever the session lies.
+  s.source = (dir.filename() / kSubjectFile).generic_string();
   return s;
 }
 
@@ -62,7 +64,8 @@ Subject measure_subject(const std::vector<Mesh>& meshes, const std::string& what
   s.size = median(sizes);
   s.height = median(heights);
   s.factor = subject_scale_factor(s.size);
-  s.source = fmt::format("measured on {} mesh(es) of {}", sizes.size(), what);
+  s.source = fmt::format("measured on {} mesh(es) of {}", sizes.size(),
+                         std::filesystem::path(what).filename().string());
   return s;
 }
 

@@ -58,6 +58,7 @@ TEST(Subject, ReadFromReconstructsRecordElseMeasured) {
   EXPECT_EQ(measured, 1);  // the session's record wins over measuring
   EXPECT_DOUBLE_EQ(s.size, 0.8);
   EXPECT_DOUBLE_EQ(s.factor, 0.4467);
+  EXPECT_EQ(s.source, "reconstruct/subject.json");  // not where the session lies
 
   std::ofstream(dir / "reconstruct" / kSubjectFile) << R"({"subject_size_m": 0.8})";
   EXPECT_THROW(read_subject(dir / "reconstruct"), InputError);
