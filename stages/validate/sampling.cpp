@@ -50,14 +50,6 @@ std::vector<int> sample_frames(int frames, int count) {
   return out;
 }
 
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0;
-  const std::size_t k =
-      std::min(v.size() - 1, static_cast<std::size_t>(q * (v.size() - 1) + 0.5));
-  std::nth_element(v.begin(), v.begin() + k, v.end());
-  return v[k];
-}
-
 cv::Mat panel(const cv::Mat& image, int width, int interpolation, const std::string& label) {
   double scale = double(width) / image.cols;
   cv::Mat out;

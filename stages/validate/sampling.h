@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "pipeline/core/statistics.h"  // percentile
+
 namespace fourd::validate {
 
 // Names of the sub-folders of `dir` (takes, cameras), sorted, hidden ones left out; empty when
@@ -19,9 +21,6 @@ int frame_count(const std::filesystem::path& dir, const std::string& ext);
 // `count` frames spread evenly over 0 .. frames-1 (both ends included when count >= 2; the
 // middle one when count is 1; every frame when count >= frames).
 std::vector<int> sample_frames(int frames, int count);
-
-// The q-quantile (0..1) of `v` by the nearest rank; 0 for an empty vector.
-double percentile(std::vector<double> v, double q);
 
 // One image panel scaled to `width` (`interpolation` as cv::resize's), grey turned to BGR,
 // with a label in the top-left corner.

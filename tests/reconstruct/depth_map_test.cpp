@@ -180,9 +180,9 @@ TEST(DepthMap, TexturedSphereIsMatchedToSubPixelPrecision) {
   // hardly any pixel off it.
   EXPECT_LT(off_sphere, 0.02 * pixel_error.size());
   EXPECT_GT(pixel_error.size(), 0.85 * sphere_pixels);
-  EXPECT_LT(validate::percentile(pixel_error, 0.5), 0.1);
-  EXPECT_LT(validate::percentile(pixel_error, 0.9), 0.4);
-  EXPECT_LT(validate::percentile(depth_error, 0.5), 0.001);
+  EXPECT_LT(percentile(pixel_error, 0.5), 0.1);
+  EXPECT_LT(percentile(pixel_error, 0.9), 0.4);
+  EXPECT_LT(percentile(depth_error, 0.5), 0.001);
 }
 
 TEST(DepthMap, BestNeighbourScoreMatchesWhatOnlyOneNeighbourSees) {
