@@ -25,6 +25,7 @@
 #include "pipeline/core/statistics.h"
 #include "pipeline/core/subject.h"
 #include "pipeline/geometry/measures.h"
+#include "stages/align/diagnosis.h"
 #include "stages/align/mesh_tools.h"
 #include "stages/align/shape_tree.h"
 #include "stages/align/surface_query.h"
@@ -672,6 +673,33 @@ class TreeRegistration {
     return true;
   }
 
+  // Fits of aligned frame k from each of the aligned frames `parents` that pass (in parallel;
+  // recorded as tried), with the parent each came from.
+  std::vector<std::pair<int, Fit>> passing_fits(int k, const std::vector<int>& parents) {
+    for (int p : parents) reg_.tried[k].insert(p);
+    std::vector<std::optional<Fit>> tries(parents.size());
+    tbb::parallel_for(std::size_t{0}, parents.size(), [&](std::size_t i) {
+      try {
+        tries[i] = fit_from(k, parents[i]);
+      } catch (const SolverError&) {
+      }
+    });
+    std::vector<std::pair<int, Fit>> out;
+    for (std::size_t i = 0; i < parents.size(); ++i) {
+      if (tries[i] && fit_failure(tries[i]->stats, options_).empty()) {
+        out.emplace_back(parents[i], std::move(*tries[i]));
+      }
+    }
+    return out;
+  }
+
+  // Frame k takes `fit`, registered from p, and its mesh is written again.
+  void adopt(int k, Fit fit, int p) {
+    reg_.fits[k] = std::move(fit);
+    reg_.parent_of[k] = p;
+    write_frame(k);
+  }
+
   // Registers the subtrees hanging from `starts` whose nodes belong to job `job`, each from
   // its tree parent, independent subtrees in parallel; a failed frame's subtree is left to
   // re-parenting (not attempted).
@@ -849,6 +877,15 @@ void run_branch_job(const fs::path& out, int branch, const AlignOptions& options
   w.save(branch_file(out, branch), kBranchMagic, kJobFileVersion);
 }
 
+// True when a's parent chain (in `reg`) passes through k.
+bool descends_from(const Registrations& reg, int a, int k) {
+  const int n = static_cast<int>(reg.parent_of.size());
+  for (int p = reg.parent_of[a], steps = 0; p >= 0 && steps <= n; p = reg.parent_of[p], ++steps) {
+    if (p == k) return true;
+  }
+  return false;
+}
+
 // Outlier fits: an aligned frame whose rms is more than outlier_rms_factor x the median of the
 // aligned frames' passed, but is most likely a wrong fit (a leg on the other leg, an arm slid
 // along itself). It is registered again from its neighbours in time and from the most similar
@@ -872,12 +909,6 @@ void refit_outliers(Plan& plan, Registrations& reg, TreeRegistration& registrati
   std::sort(outliers.begin(), outliers.end(), [&](int a, int b) {
     return reg.fits[a].stats.surface_rms > reg.fits[b].stats.surface_rms;
   });
-  auto descends_from = [&](int p, int k) {
-    for (int a = reg.parent_of[p], steps = 0; a >= 0 && steps <= n; a = reg.parent_of[a], ++steps) {
-      if (a == k) return true;
-    }
-    return false;
-  };
   for (int k : outliers) {
     FrameStatus& s = status(k);
     const FitStats first = reg.fits[k].stats;
@@ -885,7 +916,7 @@ void refit_outliers(Plan& plan, Registrations& reg, TreeRegistration& registrati
     std::vector<int> candidates;  // neighbours in time first, then the most similar frames
     std::vector<std::pair<double, int>> similar;
     for (int p = 0; p < n; ++p) {
-      if (p == k || !reg.aligned[p] || reg.tried[k].count(p) || descends_from(p, k)) continue;
+      if (p == k || !reg.aligned[p] || reg.tried[k].count(p) || descends_from(reg, p, k)) continue;
       const FrameStatus& o = status(p);
       if (o.take == s.take && std::abs(o.frame - s.frame) == 1) {
         candidates.push_back(p);
@@ -928,6 +959,203 @@ void refit_outliers(Plan& plan, Registrations& reg, TreeRegistration& registrati
       }
     }
   }
+}
+
+// Patches the template is cut into for the self-diagnosis: about a limb segment each on a
+// human (a forearm, a shin), small enough that one wrong patch stands out of its frame.
+constexpr int kDiagnosisRegions = 24;
+
+// The largest side of the mesh's bounding box [m] (a quadruped's length, a performer's height).
+double size_of(const Mesh& mesh) {
+  Vec3f lo, hi;
+  bounding_box(mesh, &lo, &hi);
+  return mesh.positions.empty() ? 0.0 : static_cast<double>((hi - lo).maxCoeff());
+}
+
+// The self-diagnosis of one aligned frame.
+struct FrameDiagnosis {
+  bool done = false;
+  std::vector<RegionCues> cues;
+  std::vector<RegionVerdict> verdicts;  // patches over a limit, worst first; empty: fine
+  bool retried = false;                 // registered again from other parents after a verdict
+};
+
+// Diagnoses the frames with a fit (aligned, or kept despite a failed fit): the surface cues
+// from the frame's input mesh, the jump cue from its take neighbours' fits (frames f-1 and
+// f+1, both with a fit) over the take's median jump of the patch.
+class Diagnoser {
+ public:
+  Diagnoser(const TemplateModel& model, const Plan& plan, const Registrations& reg,
+            const std::vector<char>& has_result, const AlignOptions& options)
+      : model_(model),
+        regions_(make_regions(model, kDiagnosisRegions)),
+        limits_(diagnosis_limits(size_of(model.rest))),
+        plan_(plan),
+        reg_(reg),
+        options_(options),
+        out_(plan.usable.size()) {
+    const int n = static_cast<int>(plan.usable.size());
+    log::Progress progress("self-diagnosis", n);
+    tbb::parallel_for(0, n, [&](int k) {
+      if (has_result[k]) {
+        out_[k].cues = surface_cues(k, reg.fits[k].state.positions);
+        out_[k].done = true;
+      }
+      progress.step();
+    });
+    for (int k = 0; k < n; ++k) {
+      if (out_[k].done) index_[{status(k).take, status(k).frame}] = k;
+    }
+    std::map<std::string, std::vector<std::vector<double>>> take_jumps;  // take, patch -> jumps
+    for (int k = 0; k < n; ++k) {
+      if (!out_[k].done) continue;
+      add_jumps(k, reg.fits[k].state.positions, &out_[k].cues);
+      auto& per_patch = take_jumps[status(k).take];
+      per_patch.resize(out_[k].cues.size());
+      for (std::size_t r = 0; r < out_[k].cues.size(); ++r) {
+        if (out_[k].cues[r].jump >= 0) per_patch[r].push_back(out_[k].cues[r].jump);
+      }
+    }
+    for (auto& [take, per_patch] : take_jumps) {
+      for (auto& jumps : per_patch) take_median_[take].push_back(median(jumps));
+    }
+    for (int k = 0; k < n; ++k) {
+      if (!out_[k].done) continue;
+      add_ratios(k, &out_[k].cues);
+      out_[k].verdicts = judge(out_[k].cues, limits_);
+    }
+  }
+
+  const TemplateRegions& regions() const { return regions_; }
+  const DiagnosisLimits& limits() const { return limits_; }
+  const FrameDiagnosis& operator[](int k) const { return out_[k]; }
+  int size() const { return static_cast<int>(out_.size()); }
+
+  // The cues of frame k were its fit `positions` (its neighbours' fits as they are now).
+  std::vector<RegionCues> cues_of(int k, const std::vector<Vec3f>& positions) const {
+    std::vector<RegionCues> cues = surface_cues(k, positions);
+    add_jumps(k, positions, &cues);
+    add_ratios(k, &cues);
+    return cues;
+  }
+  // Frame k now has the fit `positions` (a retry's).
+  void update(int k, const std::vector<Vec3f>& positions) {
+    out_[k].cues = cues_of(k, positions);
+    out_[k].verdicts = judge(out_[k].cues, limits_);
+    out_[k].retried = true;
+  }
+  void mark_retried(int k) { out_[k].retried = true; }
+
+ private:
+  const FrameStatus& status(int k) const { return plan_.frames[plan_.usable[k]].status; }
+  std::vector<RegionCues> surface_cues(int k, const std::vector<Vec3f>& positions) const {
+    const Mesh mesh = load_frame(plan_.frames[plan_.usable[k]]);
+    const SurfaceQuery target(mesh);
+    return region_cues(model_, regions_, positions, target, options_.registration.coverage_distance);
+  }
+  void add_jumps(int k, const std::vector<Vec3f>& positions, std::vector<RegionCues>* cues) const {
+    const FrameStatus& s = status(k);
+    const auto before = index_.find({s.take, s.frame - 1});
+    const auto after = index_.find({s.take, s.frame + 1});
+    if (before == index_.end() || after == index_.end()) return;
+    const std::vector<double> jumps =
+        region_jumps(regions_, positions, reg_.fits[before->second].state.positions,
+                     reg_.fits[after->second].state.positions);
+    for (std::size_t r = 0; r < jumps.size(); ++r) (*cues)[r].jump = jumps[r];
+  }
+  void add_ratios(int k, std::vector<RegionCues>* cues) const {
+    const auto m = take_median_.find(status(k).take);
+    if (m == take_median_.end()) return;
+    for (std::size_t r = 0; r < cues->size(); ++r) {
+      RegionCues& c = (*cues)[r];
+      if (c.jump >= 0 && m->second[r] > 0) c.jump_ratio = c.jump / m->second[r];
+    }
+  }
+
+  const TemplateModel& model_;
+  TemplateRegions regions_;
+  DiagnosisLimits limits_;
+  const Plan& plan_;
+  const Registrations& reg_;
+  const AlignOptions& options_;
+  std::vector<FrameDiagnosis> out_;
+  std::map<std::pair<std::string, int>, int> index_;
+  std::map<std::string, std::vector<double>> take_median_;
+};
+
+// Every aligned frame diagnosed wrong, worst first, is registered again from its neighbours in
+// time and the most similar frames (all aligned, diagnosed fine, not fitted from it); the fit
+// with the least badness is kept when it is less bad than the frame's.
+void retry_wrong_frames(const Plan& plan, Registrations& reg, TreeRegistration& registration,
+                        Diagnoser& diagnoses, const AlignOptions& options) {
+  const int n = diagnoses.size();
+  auto status = [&](int k) -> const FrameStatus& { return plan.frames[plan.usable[k]].status; };
+  std::vector<std::pair<double, int>> wrong;
+  for (int k = 0; k < n; ++k) {
+    if (reg.aligned[k] && diagnoses[k].done && !diagnoses[k].verdicts.empty()) {
+      wrong.emplace_back(badness(diagnoses[k].cues, diagnoses.limits()), k);
+    }
+  }
+  std::sort(wrong.rbegin(), wrong.rend());
+  if (!wrong.empty()) log::info("self-diagnosis: {} frames wrong somewhere, registering them again", wrong.size());
+  for (const auto& [before, k] : wrong) {
+    const FrameStatus& s = status(k);
+    std::vector<int> candidates;
+    std::vector<std::pair<double, int>> similar;
+    for (int p = 0; p < n; ++p) {
+      if (p == k || !reg.aligned[p] || reg.parent_of[k] == p || !diagnoses[p].verdicts.empty() ||
+          descends_from(reg, p, k)) {
+        continue;
+      }
+      const FrameStatus& o = status(p);
+      if (o.take == s.take && std::abs(o.frame - s.frame) == 1) {
+        candidates.push_back(p);
+      } else {
+        similar.push_back({plan.distances.value(k, p), p});
+      }
+    }
+    std::sort(similar.begin(), similar.end());
+    for (int i = 0; i < options.reparent_attempts && i < static_cast<int>(similar.size()); ++i) {
+      candidates.push_back(similar[i].second);
+    }
+    diagnoses.mark_retried(k);
+    std::vector<std::pair<int, Fit>> fits = registration.passing_fits(k, candidates);
+    double best = before;
+    int chosen = -1;
+    for (std::size_t i = 0; i < fits.size(); ++i) {
+      const double b = badness(diagnoses.cues_of(k, fits[i].second.state.positions), diagnoses.limits());
+      if (b < best) {
+        best = b;
+        chosen = static_cast<int>(i);
+      }
+    }
+    if (chosen < 0) {
+      log::debug("{}: no fit from {} other frames is less wrong", frame_label(s), candidates.size());
+      continue;
+    }
+    const int parent = fits[chosen].first;
+    log::info("{}: registered again from {}: badness {:.2f} -> {:.2f}", frame_label(s),
+              frame_label(status(parent)), before, best);
+    registration.adopt(k, std::move(fits[chosen].second), parent);
+    diagnoses.update(k, reg.fits[k].state.positions);
+  }
+}
+
+json diagnosis_json(const FrameDiagnosis& d, const TemplateRegions& regions) {
+  json wrong = json::array();
+  for (const RegionVerdict& v : d.verdicts) {
+    wrong.push_back({{"region", regions.names[v.region]}, {"cue", v.cue}, {"value", v.value},
+                     {"limit", v.limit}});
+  }
+  json cues = json::array();
+  for (const RegionCues& c : d.cues) {
+    cues.push_back({1e3 * c.residual_p90, c.uncovered, c.stretch_rms, c.flipped,
+                    c.jump < 0 ? -1.0 : 1e3 * c.jump, c.jump_ratio});
+  }
+  return {{"verdict", d.verdicts.empty() ? "ok" : "wrong"},
+          {"retried", d.retried},
+          {"wrong", wrong},
+          {"cues", cues}};
 }
 
 // The finish job: merges the branch jobs' results, re-parents and keeps what failed, runs the
@@ -1030,6 +1258,29 @@ void run_finish_job(const fs::path& out, const StageArgs& args, const AlignOptio
       s.error = "its parent could not be aligned and no other parent fitted";
     }
   }
+  // 5b. Self-diagnosis: every fit measured patch by patch; a frame with a patch over a limit is
+  //     registered again from other parents, and if still wrong flagged, the patch named.
+  std::vector<char> has_result(n, 0);
+  for (int k = 0; k < n; ++k) has_result[k] = reg.aligned[k] || kept[k];
+  Diagnoser diagnoses(model, plan, reg, has_result, options);
+  retry_wrong_frames(plan, reg, registration, diagnoses, options);
+  const TemplateRegions& regions = diagnoses.regions();
+  const DiagnosisLimits& limits = diagnoses.limits();
+  std::vector<int> database_index(frames.size(), -1);
+  int diagnosed_wrong = 0;
+  for (int k = 0; k < n; ++k) {
+    database_index[plan.usable[k]] = k;
+    const FrameDiagnosis& d = diagnoses[k];
+    if (!d.done || d.verdicts.empty()) continue;
+    FrameStatus& s = frames[plan.usable[k]].status;
+    s.flags.push_back("diagnosed_wrong");
+    ++diagnosed_wrong;
+    const RegionVerdict& v = d.verdicts.front();
+    log::warn("{}: diagnosed wrong{} - {} {}: {:.3g} over the limit {:.3g}{}", frame_label(s),
+              d.retried ? " (also after registering it again from other frames)" : "",
+              regions.names[v.region], v.cue, v.value, v.limit,
+              d.verdicts.size() > 1 ? fmt::format(" (and {} more)", d.verdicts.size() - 1) : "");
+  }
   for (int k = 0; k < n; ++k) {  // depth along the parents actually used
     FrameStatus& s = frames[plan.usable[k]].status;
     int depth = 0;
@@ -1076,6 +1327,8 @@ void run_finish_job(const fs::path& out, const StageArgs& args, const AlignOptio
         entry["error"] = s.error;
         ++flagged_count;
       }
+      const int k = database_index[&f - frames.data()];
+      if (k >= 0 && diagnoses[k].done) entry["diagnosis"] = diagnosis_json(diagnoses[k], regions);
       per_frame.push_back(entry);
     } else {
       excluded.push_back({{"take", s.take}, {"frame", s.frame}, {"reason", s.error}, {"flags", s.flags}});
@@ -1102,13 +1355,25 @@ void run_finish_job(const fs::path& out, const StageArgs& args, const AlignOptio
                  {"branch_jobs", plan.branches},
                  {"seconds", seconds},
                  {"seconds_per_frame", seconds / static_cast<double>(frames.size())},
+                 {"diagnosis",
+                  {{"wrong_frames", diagnosed_wrong},
+                   {"regions", regions.names},
+                   {"cue_columns", {"residual_p90_mm", "uncovered", "stretch_rms", "flipped",
+                                    "jump_mm", "jump_ratio"}},
+                   {"limits", {{"residual_p90_mm", 1e3 * limits.residual},
+                               {"uncovered", limits.uncovered},
+                               {"stretch_rms", limits.stretch},
+                               {"flipped", limits.flipped},
+                               {"jump_mm", 1e3 * limits.jump},
+                               {"jump_ratio", limits.jump_ratio}}}}},
                  {"per_frame", per_frame}};
   if (options.sequential_baseline) report["sequential"] = sequential;
   write_file_atomic(out / "report.json", report.dump(1) + "\n");
   write_file_atomic(out / "options.yaml", options_header + options_text(options));
-  log::info("aligned {} of {} frames ({} of them kept despite a failed fit, flagged), surface rms "
-            "{:.2f} mm, {} flipped triangles, {:.2f} s per frame",
-            aligned_count, frames.size(), flagged_count, report["surface_rms_mm"].get<double>(), flipped,
+  log::info("aligned {} of {} frames ({} of them kept despite a failed fit, flagged; {} diagnosed "
+            "wrong somewhere), surface rms {:.2f} mm, {} flipped triangles, {:.2f} s per frame",
+            aligned_count, frames.size(), flagged_count, diagnosed_wrong,
+            report["surface_rms_mm"].get<double>(), flipped,
             seconds / static_cast<double>(frames.size()));
 }
 
