@@ -13,6 +13,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <map>
 #include <memory>
@@ -24,6 +25,7 @@
 #include "pipeline/core/files.h"
 #include "pipeline/core/image_io.h"
 #include "pipeline/core/mesh_io.h"
+#include "pipeline/core/config.h"  // kReferenceSubjectSize
 #include "pipeline/geometry/mesh_query.h"
 #include "stages/validate/sampling.h"
 #include "stages/validate/validate.h"
@@ -278,6 +280,61 @@ std::string worst_frames(const AlignmentErrors& e, std::size_t count) {
   return md + "\n";
 }
 
+// What align's self-diagnosis said of each frame against what it is: frames whose worst
+// template vertex is more than `bad` off (truth) vs the frames align flagged `diagnosed_wrong`
+// (report.json); precision counts a flag as right when the frame is more than `off` off
+// somewhere. Adds the metrics and a confusion table, writes <reports>/<folder>_frames.json.
+void diagnosis_confusion(const AlignmentErrors& errors, const json& align_report, double bad,
+                         double off, const std::string& folder, const fs::path& reports_dir,
+                         const std::function<void(const char*, double, const char*)>& add,
+                         std::string* details) {
+  std::map<std::pair<std::string, int>, const json*> entry_of;
+  if (align_report.contains("per_frame")) {
+    for (const json& e : align_report["per_frame"]) {
+      entry_of[{e.value("take", ""), e.value("frame", -1)}] = &e;
+    }
+  }
+  int counts[3][2] = {};  // [over bad | over off | within off][flagged]
+  json frames = json::array();
+  for (const AlignedFrameError& f : errors.frames) {
+    const double worst = f.correspondence.empty()
+                             ? 0.0
+                             : *std::max_element(f.correspondence.begin(), f.correspondence.end());
+    bool flagged = false;
+    json wrong = json::array();
+    const auto it = entry_of.find({f.take, f.frame});
+    if (it != entry_of.end()) {
+      const json& flags = it->second->value("flags", json::array());
+      flagged = std::find(flags.begin(), flags.end(), "diagnosed_wrong") != flags.end();
+      if (it->second->contains("diagnosis")) wrong = (*it->second)["diagnosis"].value("wrong", json::array());
+    }
+    const int row = worst > bad ? 0 : worst > off ? 1 : 2;
+    ++counts[row][flagged ? 1 : 0];
+    frames.push_back({{"take", f.take}, {"frame", f.frame}, {"rms_mm", 1e3 * rms(f.correspondence)},
+                      {"worst_mm", 1e3 * worst}, {"flagged", flagged}, {"wrong", wrong}});
+  }
+  write_file_atomic(reports_dir / (folder + "_frames.json"), frames.dump(1) + "\n");
+  const int truly_bad = counts[0][0] + counts[0][1];
+  const int flagged = counts[0][1] + counts[1][1] + counts[2][1];
+  add("frames_worst_over_50mm", truly_bad,
+      "frames with a template vertex more than 50 mm (x the subject's size / 1.75 m) from its true place");
+  add("diagnosed_wrong_frames", flagged, "frames align's self-diagnosis flagged (diagnosed_wrong)");
+  if (truly_bad > 0) {
+    add("diagnosis_recall", static_cast<double>(counts[0][1]) / truly_bad,
+        "of the frames more than 50 mm off somewhere, the fraction align flagged");
+  }
+  if (flagged > 0) {
+    add("diagnosis_precision", static_cast<double>(counts[0][1] + counts[1][1]) / flagged,
+        "of the frames align flagged, the fraction more than 30 mm off somewhere");
+  }
+  *details += fmt::format(
+      "Self-diagnosis against the truth (worst template vertex of each frame; {}_frames.json "
+      "lists every frame):\n\n| worst vertex off by | flagged | not flagged |\n|---|---:|---:|\n"
+      "| > {:.0f} mm | {} | {} |\n| {:.0f}-{:.0f} mm | {} | {} |\n| <= {:.0f} mm | {} | {} |\n\n",
+      folder, 1e3 * bad, counts[0][1], counts[0][0], 1e3 * off, 1e3 * bad, counts[1][1],
+      counts[1][0], 1e3 * off, counts[2][1], counts[2][0]);
+}
+
 }  // namespace
 
 StageReport validate_align(const ValidationContext& ctx) {
@@ -335,6 +392,15 @@ StageReport validate_align(const ValidationContext& ctx) {
     report.details += fmt::format("**{}** (root {}, {} frames):\n\n{}\n", v.folder, errors.root,
                                   errors.frames.size(), take_table(errors, sequential.get()));
     report.details += worst_frames(errors, 8);
+    {
+      // 50 and 30 mm at the reference subject's size, scaled to this template's.
+      const Mesh templ = read_ply(dir / "template.ply");
+      Vec3f lo, hi;
+      bounding_box(templ, &lo, &hi);
+      const double scale = templ.positions.empty() ? 1.0 : (hi - lo).maxCoeff() / kReferenceSubjectSize;
+      diagnosis_confusion(errors, align_report, 0.05 * scale, 0.03 * scale, v.folder,
+                          ctx.reports_dir, add, &report.details);
+    }
     if (errors.flipped > 0) {
       report.details += fmt::format(
           "Flipped triangles: {} over {} template triangles; the largest correspondence error of "
