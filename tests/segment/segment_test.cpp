@@ -164,6 +164,44 @@ TEST(SegmentPlate, ToleratesAGainChangeAndAShadow) {
   EXPECT_LT(cv::countNonZero(mask(shadow)), shadow.area() / 100) << "the shadow is foreground";
 }
 
+// The outline of a performer against a contrasting plate: its pixels are partly both, and already
+// at a small coverage far more than the noise off the plate. A disc rendered 4x4 supersampled
+// (the pixel's colour is its coverage's mix): the silhouette is the pixels whose centre it
+// covers, not one pixel wider all round.
+TEST(SegmentPlate, MixedOutlinePixelsGoByTheirCoverage) {
+  std::mt19937 rng(5);
+  cv::Mat empty(kH, kW, CV_8UC3, cv::Scalar(200, 205, 210));  // a light wall
+  std::vector<cv::Mat> plates;
+  for (int i = 0; i < 3; ++i) {
+    cv::Mat p = empty.clone();
+    add_noise(p, rng, 2.0);
+    plates.push_back(p);
+  }
+  const PlateModel model = learn_plate(plates, "cam00");
+  const cv::Point2d centre(kW / 2.0 + 0.3, kH / 2.0 - 0.2);
+  const double radius = 0.35 * kH;
+  const cv::Vec3f dark(140, 70, 40);  // denim blue (grey would pass for shadow)
+  cv::Mat frame = empty.clone(), truth = cv::Mat::zeros(kH, kW, CV_8U);
+  for (int y = 0; y < kH; ++y) {
+    for (int x = 0; x < kW; ++x) {
+      auto inside = [&](double px, double py) { return std::hypot(px - centre.x, py - centre.y) < radius; };
+      int covered = 0;
+      for (int sy = 0; sy < 4; ++sy) {
+        for (int sx = 0; sx < 4; ++sx) covered += inside(x + (sx + 0.5) / 4, y + (sy + 0.5) / 4);
+      }
+      const float a = covered / 16.0f;
+      cv::Vec3b& px = frame.at<cv::Vec3b>(y, x);
+      for (int ch = 0; ch < 3; ++ch) px[ch] = cv::saturate_cast<std::uint8_t>(a * dark[ch] + (1 - a) * px[ch]);
+      truth.at<std::uint8_t>(y, x) = inside(x + 0.5, y + 0.5) ? 255 : 0;
+    }
+  }
+  add_noise(frame, rng, 2.0);
+  const cv::Mat mask = plate_silhouette(frame, model, SegmentOptions{});
+  const int perimeter = static_cast<int>(2 * M_PI * radius);
+  EXPECT_LT(cv::countNonZero(mask & ~truth), perimeter / 4) << "a ring of mixed pixels taken whole";
+  EXPECT_LT(cv::countNonZero(truth & ~mask), perimeter / 4) << "the outline eaten into";
+}
+
 // Shadows are background only where the plate shows the floor near the rig's centre: a dark
 // grey coat over a grey wall, darker than the wall by a shadow's factor, is the performer.
 TEST(SegmentPlate, ShadowsOnlyWhereTheFloorCanTakeThem) {
