@@ -8,7 +8,7 @@ namespace fourd::web {
 
 // Mean wall-clock time of one Character::step at a fixed motion-time step, walking under the
 // controller at the locomotion space's middle speed with a heading change every second (so
-// transitions and searches are part of it).
+// transitions and searches are part of it), after an untimed run of the same steps.
 struct StepBenchmark {
   int steps = 0;
   int vertices = 0;
