@@ -3,7 +3,9 @@
 #include <fmt/format.h>
 
 #include <cstdint>
+#ifndef FOURD_ENCODED_TEXTURES
 #include <opencv2/imgcodecs.hpp>
+#endif
 
 #include "pipeline/core/binary_format.h"
 #include "pipeline/core/error.h"
@@ -89,6 +91,7 @@ void write_textures(BinaryWriter& w, const AssetTextures& t) {
   w.write<std::uint64_t>(t.spaces.size());
   for (const SpaceTextures& s : t.spaces) w.write<std::int32_t>(s.keys);
   w.write<std::uint64_t>(t.images.size());
+#ifndef FOURD_ENCODED_TEXTURES
   std::vector<std::uint8_t> bytes;
   for (std::size_t k = 0; k < t.images.size(); ++k) {
     if (!cv::imencode(".jpg", t.images[k], bytes, {cv::IMWRITE_JPEG_QUALITY, t.jpeg_quality})) {
@@ -96,6 +99,9 @@ void write_textures(BinaryWriter& w, const AssetTextures& t) {
     }
     w.write_vector(bytes);
   }
+#else
+  for (const std::vector<std::uint8_t>& bytes : t.images) w.write_vector(bytes);  // JPEG files
+#endif
 }
 
 // The image size a JPEG file announces in its frame header (SOFn), read before decoding so a
@@ -165,6 +171,9 @@ AssetTextures read_textures(BinaryReader& r, std::size_t spaces) {
       throw InputError(fmt::format("{}: key texture {} is {} x {}, the asset announces {} x {}",
                                    file, k, w, h, t.width, t.height));
     }
+#ifdef FOURD_ENCODED_TEXTURES
+    t.images.push_back(bytes);  // the browser decodes them
+#else
     cv::Mat image;
     try {
       image = cv::imdecode(bytes, cv::IMREAD_COLOR);
@@ -180,6 +189,7 @@ AssetTextures read_textures(BinaryReader& r, std::size_t spaces) {
                                    file, k, image.cols, image.rows, t.width, t.height));
     }
     t.images.push_back(image);
+#endif
   }
   return t;
 }

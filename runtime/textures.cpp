@@ -44,6 +44,7 @@ void AssetTextures::check(std::span<const int> inputs, std::size_t triangles) co
     throw InputError(
         fmt::format("textures: {} key images, the spaces need {}", images.size(), expected));
   }
+#ifndef FOURD_ENCODED_TEXTURES
   for (std::size_t k = 0; k < images.size(); ++k) {
     const cv::Mat& m = images[k];
     if (m.type() != CV_8UC3 || m.cols != width || m.rows != height || !m.isContinuous()) {
@@ -52,6 +53,7 @@ void AssetTextures::check(std::span<const int> inputs, std::size_t triangles) co
                                    k, m.cols, m.rows, m.type(), width, height));
     }
   }
+#endif
 }
 
 void texture_blend_add(const AssetTextures& textures, int space, bool cyclic, double t,
@@ -95,6 +97,7 @@ void texture_blend_add(const AssetTextures& textures, int space, bool cyclic, do
   }
 }
 
+#ifndef FOURD_ENCODED_TEXTURES
 void blend_texture_image(const AssetTextures& textures, const TextureBlend& blend, cv::Mat* out) {
   out->create(textures.height, textures.width, CV_8UC3);
   const std::size_t n = textures.image_bytes();
@@ -123,5 +126,7 @@ void blend_texture_image(const AssetTextures& textures, const TextureBlend& blen
     }
   }
 }
+
+#endif
 
 }  // namespace fourd

@@ -16,10 +16,17 @@
 // Blending is cheap and allocation-free: texture_blend_add() lists at most kMaxTextureSources
 // images and weights (a cross-fade adds the fading space's too); a shader blends them, and
 // blend_texture_image() does it on the CPU for renderers without shaders.
+//
+// The web build (web/, WebAssembly, no OpenCV) defines FOURD_ENCODED_TEXTURES: there the images
+// stay the JPEG files the asset stores (their sizes checked against the announced one), the
+// browser decodes them, and blend_texture_image() does not exist.
 #include <array>
-#include <opencv2/core.hpp>
+#include <cstdint>
 #include <span>
 #include <vector>
+#ifndef FOURD_ENCODED_TEXTURES
+#include <opencv2/core.hpp>
+#endif
 
 #include "pipeline/core/mesh.h"
 
@@ -34,7 +41,11 @@ struct AssetTextures {
   int width = 0, height = 0;      // texels of every image
   std::vector<Vec2f> corner_uvs;  // #F x 3: UV of each triangle corner (OBJ convention, v up)
   std::vector<SpaceTextures> spaces;  // one per motion space of the graph
+#ifndef FOURD_ENCODED_TEXTURES
   std::vector<cv::Mat> images;    // CV_8UC3 BGR, width x height, continuous
+#else
+  std::vector<std::vector<std::uint8_t>> images;  // the asset's JPEG files, width x height
+#endif
   int jpeg_quality = 90;          // how the asset file stores them (JPEG, 1..100)
 
   bool empty() const { return images.empty(); }
@@ -59,8 +70,10 @@ struct TextureBlend {
 void texture_blend_add(const AssetTextures& textures, int space, bool cyclic, double t,
                        std::span<const float> w, float scale, TextureBlend* out);
 
+#ifndef FOURD_ENCODED_TEXTURES
 // out = sum_k weights[k] * images[k], rounded to 8 bits. `out` is (re)allocated only when it is
 // not already width x height CV_8UC3, so a caller that keeps it allocates once.
 void blend_texture_image(const AssetTextures& textures, const TextureBlend& blend, cv::Mat* out);
+#endif
 
 }  // namespace fourd

@@ -16,6 +16,7 @@ PACKAGES=(
   ffmpeg
   nodejs
   blender python3-numpy chromium  # real glTF clients the export tests open the .glb in
+  emscripten  # the web player (scripts/build_web.sh): the runtime in WebAssembly
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -9,6 +9,11 @@
 //   client_check meshes A.ply B.ply MAX_MM
 //     Two meshes of the same vertices (e.g. a frame of fourd-export --sequence and fourd-play's
 //     mesh of that frame): max / mean vertex distance in mm, same triangles; exits 1 above MAX_MM.
+//   client_check frames MESH_DIR CLIENT.json MAX_MM
+//     CLIENT.json's "frames" (frame indices) and "positions" (the world vertices of each of those
+//     frames, our axes and vertex order, one frame after the other: the web player's script run)
+//     against fourd-play's meshes MESH_DIR/frame_NNNNN.ply of the same script. Prints max / mean
+//     difference in mm over all of them; exits 1 above MAX_MM.
 //   client_check camera CALIBRATION N WIDTH HEIGHT OUT.json
 //     Studio camera N of a COLMAP calibration at WIDTH x HEIGHT as three.js needs it: the
 //     OpenGL projection matrix and the camera's world matrix in glTF axes (column-major).
@@ -88,6 +93,38 @@ int meshes(const std::string& a_path, const std::string& b_path, double max_mm) 
   return max_error <= max_mm ? kExitOk : kExitFailure;
 }
 
+int frames(const std::string& mesh_dir, const std::string& client, double max_mm) {
+  const nlohmann::json j = nlohmann::json::parse(read_file(client));
+  const std::vector<int> indices = j.at("frames").get<std::vector<int>>();
+  const std::vector<double> p = j.at("positions").get<std::vector<double>>();
+  if (indices.empty()) throw InputError(fmt::format("{}: no frames", client));
+  if (p.size() % (3 * indices.size()) != 0)
+    throw InputError(fmt::format("{}: {} coordinates for {} frames", client, p.size(), indices.size()));
+  const std::size_t vertices = p.size() / (3 * indices.size());
+  double max_error = 0, sum = 0;
+  int worst_frame = -1;
+  for (std::size_t k = 0; k < indices.size(); ++k) {
+    const std::string ply = fmt::format("{}/frame_{:05d}.ply", mesh_dir, indices[k]);
+    const Mesh mesh = read_ply(ply);
+    if (mesh.num_vertices() != vertices)
+      throw InputError(fmt::format("{} has {} vertices, {} reports {}", ply, mesh.num_vertices(),
+                                   client, vertices));
+    for (std::size_t v = 0; v < vertices; ++v) {
+      const double* q = &p[3 * (k * vertices + v)];
+      const double e = 1e3 * (Eigen::Vector3d(q[0], q[1], q[2]) -
+                              mesh.positions[v].cast<double>()).norm();
+      if (e > max_error) worst_frame = indices[k];
+      max_error = std::max(max_error, e);
+      sum += e;
+    }
+  }
+  fmt::print("{} ({}) vs fourd-play's meshes in {}: {} frames of {} vertices, max difference "
+             "{:.6f} mm (frame {}), mean {:.6f} mm (tolerance {} mm)\n",
+             j.value("client", "client"), client, mesh_dir, indices.size(), vertices, max_error,
+             worst_frame, sum / (indices.size() * vertices), max_mm);
+  return max_error <= max_mm ? kExitOk : kExitFailure;
+}
+
 nlohmann::json column_major(const Eigen::Matrix4d& m) {
   std::vector<double> v(m.data(), m.data() + 16);  // Eigen is column-major
   return v;
@@ -164,6 +201,7 @@ int main(int argc, char** argv) {
   try {
     if (a.size() == 5 && a[0] == "positions") return positions(a[1], a[2], a[3], std::stod(a[4]));
     if (a.size() == 4 && a[0] == "meshes") return meshes(a[1], a[2], std::stod(a[3]));
+    if (a.size() == 4 && a[0] == "frames") return frames(a[1], a[2], std::stod(a[3]));
     if (a.size() == 6 && a[0] == "camera")
       return camera(a[1], std::stoi(a[2]), std::stoi(a[3]), std::stoi(a[4]), a[5]);
     if ((a.size() == 4 || a.size() == 5) && a[0] == "image")
@@ -175,6 +213,7 @@ int main(int argc, char** argv) {
   fmt::print(stderr,
              "usage: client_check positions ASSET PLY CLIENT.json MAX_MM\n"
              "       client_check meshes A.ply B.ply MAX_MM\n"
+             "       client_check frames MESH_DIR CLIENT.json MAX_MM\n"
              "       client_check camera CALIBRATION N WIDTH HEIGHT OUT.json\n"
              "       client_check image FOURD.png CLIENT.png MIN_DB [DIFF.png]\n");
   return kExitUsage;

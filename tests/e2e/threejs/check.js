@@ -9,9 +9,8 @@
 // Exits 1 on a failure, 77 when chromium or the npm packages are missing.
 'use strict';
 const fs = require('fs');
-const http = require('http');
 const path = require('path');
-const { execSync } = require('child_process');
+const { requireBrowser, serve, launch, collectErrors } = require('../browser.js');
 
 const [glb, clip, frame, cameraFile, outJson, outPng] = process.argv.slice(2, 8);
 const compressed = process.argv.includes('--compressed');
@@ -21,58 +20,28 @@ if (!outPng) {
   console.error('usage: node check.js GLB CLIP FRAME CAMERA.json OUT.json OUT.png [--compressed]');
   process.exit(2);
 }
-const chromium = ['/usr/bin/chromium', '/usr/bin/chromium-browser'].find((p) => fs.existsSync(p));
-const root = execSync('npm root -g').toString().trim();
-let puppeteer;
-try {
-  puppeteer = require(path.join(root, 'puppeteer-core'));
-} catch (e) {
-  console.log('SKIP: puppeteer-core is not installed (scripts/setup.sh installs it)');
+const browserPackages = requireBrowser();
+const threeDir = path.join(browserPackages.root, 'three');
+if (!fs.existsSync(path.join(threeDir, 'build', 'three.module.js'))) {
+  console.log('SKIP: three is not installed (scripts/setup.sh installs it)');
   process.exit(77);
 }
-const threeDir = path.join(root, 'three');
-if (!chromium || !fs.existsSync(path.join(threeDir, 'build', 'three.module.js'))) {
-  console.log(`SKIP: ${chromium ? 'three' : 'chromium'} is not installed (scripts/setup.sh installs it)`);
-  process.exit(77);
-}
-
-const types = { '.html': 'text/html', '.js': 'text/javascript', '.glb': 'model/gltf-binary' };
-const server = http.createServer((req, res) => {
-  const url = decodeURIComponent(req.url.split('?')[0]);
-  let file = null;
-  if (url === '/page.html') file = path.join(__dirname, 'page.html');
-  else if (url === '/model.glb') file = glb;
-  else if (url === '/texture' && texture) file = texture;
-  else if (url.startsWith('/three/')) file = path.join(threeDir, path.normalize(url.slice(7)));
-  if (!file || !fs.existsSync(file)) {
-    res.writeHead(404);
-    res.end();
-    return;
-  }
-  res.writeHead(200, { 'Content-Type': types[path.extname(file)] || 'application/octet-stream' });
-  fs.createReadStream(file).pipe(res);
-});
+let server = null;
 
 (async () => {
-  await new Promise((resolve) => server.listen(0, '127.0.0.1', resolve));
+  server = await serve((url) => {
+    if (url === '/page.html') return path.join(__dirname, 'page.html');
+    if (url === '/model.glb') return glb;
+    if (url === '/texture' && texture) return texture;
+    if (url.startsWith('/three/')) return path.join(threeDir, path.normalize(url.slice(7)));
+    return null;
+  });
   const port = server.address().port;
   const started = Date.now();
-  const browser = await puppeteer.launch({
-    executablePath: chromium,
-    headless: true,
-    args: ['--no-sandbox', '--disable-dev-shm-usage', '--use-gl=angle', '--use-angle=swiftshader',
-           '--enable-unsafe-swiftshader', '--ignore-gpu-blocklist'],
-  });
+  const browser = await launch(browserPackages);
   try {
     const page = await browser.newPage();
-    const errors = [];
-    page.on('pageerror', (e) => errors.push(e.message));
-    page.on('console', (m) => {
-      if (m.type() === 'error' && !m.text().startsWith('Failed to load resource')) errors.push(m.text());
-    });
-    page.on('response', (r) => {
-      if (r.status() >= 400 && !r.url().endsWith('/favicon.ico')) errors.push(`${r.status()} ${r.url()}`);
-    });
+    const errors = collectErrors(page, false);
     await page.goto(`http://127.0.0.1:${port}/page.html`);
     await page.waitForFunction('window.fourdReady === true', { timeout: 30000 });
     const camera = JSON.parse(fs.readFileSync(cameraFile, 'utf8'));
@@ -98,6 +67,6 @@ const server = http.createServer((req, res) => {
   }
 })().catch((e) => {
   console.error(`check.js: ${e.stack || e}`);
-  server.close();
+  if (server) server.close();
   process.exit(1);
 });

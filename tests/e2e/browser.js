@@ -1,0 +1,73 @@
+// What the browser tests share (threejs/check.js, web/check.js): Debian's chromium and the
+// globally installed puppeteer-core (scripts/setup.sh), or exit 77 (skipped) without them; a
+// local HTTP server for the page's files; headless Chromium with software WebGL (SwiftShader);
+// the page's errors collected.
+'use strict';
+const fs = require('fs');
+const http = require('http');
+const path = require('path');
+const { execSync } = require('child_process');
+
+// The chromium executable and puppeteer-core; exits 77 when either is missing.
+function requireBrowser() {
+  const chromium = ['/usr/bin/chromium', '/usr/bin/chromium-browser'].find((p) => fs.existsSync(p));
+  if (!chromium) {
+    console.log('SKIP: chromium is not installed (scripts/setup.sh installs it)');
+    process.exit(77);
+  }
+  const root = execSync('npm root -g').toString().trim();
+  try {
+    return { chromium, root, puppeteer: require(path.join(root, 'puppeteer-core')) };
+  } catch (e) {
+    console.log('SKIP: puppeteer-core is not installed (scripts/setup.sh installs it)');
+    process.exit(77);
+  }
+}
+
+const types = { '.html': 'text/html', '.js': 'text/javascript', '.wasm': 'application/wasm',
+                '.glb': 'model/gltf-binary' };
+
+// Serves on 127.0.0.1 (a free port) the file `route(url path)` names; 404 for null or a missing
+// file. Resolves to the server.
+function serve(route) {
+  const server = http.createServer((req, res) => {
+    const file = route(decodeURIComponent(req.url.split('?')[0]));
+    if (!file || !fs.existsSync(file)) {
+      res.writeHead(404);
+      res.end();
+      return;
+    }
+    res.writeHead(200, { 'Content-Type': types[path.extname(file)] || 'application/octet-stream' });
+    fs.createReadStream(file).pipe(res);
+  });
+  return new Promise((resolve) => server.listen(0, '127.0.0.1', () => resolve(server)));
+}
+
+function launch({ puppeteer, chromium }) {
+  return puppeteer.launch({
+    executablePath: chromium,
+    headless: true,
+    args: ['--no-sandbox', '--disable-dev-shm-usage', '--use-gl=angle', '--use-angle=swiftshader',
+           '--enable-unsafe-swiftshader', '--ignore-gpu-blocklist'],
+  });
+}
+
+// The page's uncaught errors, console errors and failed requests (a missing favicon aside);
+// other console messages go to stdout when `echo` is set.
+function collectErrors(page, echo) {
+  const errors = [];
+  page.on('pageerror', (e) => errors.push(e.message));
+  page.on('console', (m) => {
+    if (m.type() === 'error') {
+      if (!m.text().startsWith('Failed to load resource')) errors.push(m.text());
+    } else if (echo) {
+      console.log(`page: ${m.text()}`);
+    }
+  });
+  page.on('response', (r) => {
+    if (r.status() >= 400 && !r.url().endsWith('/favicon.ico')) errors.push(`${r.status()} ${r.url()}`);
+  });
+  return errors;
+}
+
+module.exports = { requireBrowser, serve, launch, collectErrors };

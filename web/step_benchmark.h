@@ -1,0 +1,20 @@
+#pragma once
+// The runtime step benchmark of the web player (docs/web.md), built into the WebAssembly module
+// and natively (tests/web/step_bench.cpp), so the browser's and the native step times come from
+// the same code.
+#include "runtime/asset.h"
+
+namespace fourd::web {
+
+// Mean wall-clock time of one Character::step at a fixed motion-time step, walking under the
+// controller at the locomotion space's middle speed with a heading change every second (so
+// transitions and searches are part of it), after an untimed run of the same steps.
+struct StepBenchmark {
+  int steps = 0;
+  int vertices = 0;
+  double mean_us = 0;
+  double total_ms = 0;
+};
+StepBenchmark benchmark_steps(const Asset& asset, int steps, double dt);
+
+}  // namespace fourd::web
