@@ -29,6 +29,19 @@
 // scale_unset_lengths(options, factor, set_keys, path), which multiplies every such length the
 // user did not set (read_options records the keys a session.yaml or preset set) by
 // factor = subject size / kReferenceSubjectSize; a length set explicitly is kept as given.
+//
+// Tuned values. A struct member that is not an option (no v() line: session.yaml cannot set it,
+// `fourd defaults` does not print it) but is a subject-relative length is still scaled when the
+// struct lists it in an internal_lengths() member, with the same visitor signature:
+//
+//     template <class V>
+//     void internal_lengths(V& v) {
+//       v("coarse_voxel", coarse_voxel, "", Length{1e-4, 0.5});
+//       v("descriptor", descriptor, "");  // a nested struct: its own lengths
+//     }
+//
+// Only the scaling visits it; a nested struct reached from visit() or internal_lengths() has
+// its own internal_lengths() visited too.
 #include <yaml-cpp/yaml.h>
 
 #include <filesystem>
@@ -75,6 +88,14 @@ struct NullVisitor {
 };
 template <class T>
 struct is_options<T, std::void_t<decltype(std::declval<T&>().visit(std::declval<NullVisitor&>()))>>
+    : std::true_type {};
+
+// A struct with tuned lengths that are not options (see "Tuned values" above).
+template <class T, class = void>
+struct has_internal_lengths : std::false_type {};
+template <class T>
+struct has_internal_lengths<
+    T, std::void_t<decltype(std::declval<T&>().internal_lengths(std::declval<NullVisitor&>()))>>
     : std::true_type {};
 
 template <class T>
@@ -182,23 +203,29 @@ void read_value(const std::string& file, const YAML::Node& node, const std::stri
   }
 }
 
-// Multiplies the subject-relative lengths (Range::subject_length) not in `set_keys` by a factor.
+// Multiplies the subject-relative lengths (Range::subject_length) not in `set_keys` by a factor:
+// the options' and the tuned ones internal_lengths() lists.
 class Scaler {
  public:
   Scaler(double factor, const SetKeys& set_keys, std::string path,
          std::vector<std::string>& scaled)
       : factor_(factor), set_keys_(set_keys), path_(std::move(path)), scaled_(scaled) {}
+  // Every length of `opts`, a struct at `path`.
+  template <class T>
+  void scale_struct(T& opts, const std::string& path) {
+    Scaler inner(factor_, set_keys_, path, scaled_);
+    if constexpr (is_options<T>::value) opts.visit(inner);
+    if constexpr (has_internal_lengths<T>::value) opts.internal_lengths(inner);
+  }
   template <class T>
   void operator()(const char* key, T& field, const char* /*help*/, Range range = {}) {
     const std::string path = path_.empty() ? key : path_ + "." + key;
-    if constexpr (is_options<T>::value) {
-      Scaler inner(factor_, set_keys_, path, scaled_);
-      field.visit(inner);
+    if constexpr (is_options<T>::value || has_internal_lengths<T>::value) {
+      scale_struct(field, path);
     } else if constexpr (is_vector<T>::value) {
       if constexpr (is_options<typename T::value_type>::value) {
         for (std::size_t i = 0; i < field.size(); ++i) {
-          Scaler inner(factor_, set_keys_, fmt::format("{}[{}]", path, i), scaled_);
-          field[i].visit(inner);
+          scale_struct(field[i], fmt::format("{}[{}]", path, i));
         }
       } else if constexpr (std::is_floating_point_v<typename T::value_type>) {
         if (range.subject_length && !set_keys_.count(path)) {
@@ -264,15 +291,15 @@ void read_options(const std::string& file, const YAML::Node& node, const std::st
   config_detail::read_value(file, node, path, opts, Range{}, set_keys);
 }
 
-// Multiplies every subject-relative length of `opts` (declared with Length) whose key path
-// (`path` + "." + key, as read_options records it) is not in `set_keys` by `factor`, then
-// runs the options' check() again. Returns the paths of the lengths it scaled.
+// Multiplies every subject-relative length of `opts` (declared with Length, in visit() or
+// internal_lengths()) whose key path (`path` + "." + key, as read_options records it) is not in
+// `set_keys` by `factor`, then runs the options' check() again. Returns the paths of the
+// lengths it scaled.
 template <class T>
 std::vector<std::string> scale_unset_lengths(T& opts, double factor, const SetKeys& set_keys,
                                              const std::string& path) {
   std::vector<std::string> scaled;
-  config_detail::Scaler scaler(factor, set_keys, path, scaled);
-  opts.visit(scaler);
+  config_detail::Scaler(factor, set_keys, path, scaled).scale_struct(opts, path);
   config_detail::call_check(opts, path);
   return scaled;
 }

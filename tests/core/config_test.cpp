@@ -177,6 +177,54 @@ TEST(Config, ScalingChecksTheOptionsAgain) {
   EXPECT_THROW(scale_unset_lengths(o, 3.0, set, "stages.x"), ConfigError);
 }
 
+// Tuned lengths that are not options: scaled like the options' lengths, never read, written
+// or described.
+struct Tuned {
+  double margin = 0.03;
+  template <class V>
+  void internal_lengths(V& v) {
+    v("margin", margin, "", Length{0, 1});
+  }
+};
+struct WithTuned {
+  double voxel = 0.006;
+  double band = 0.12;  // tuned, not an option
+  Tuned tuned;         // tuned, not an option
+  Sized sized;
+  template <class V>
+  void visit(V& v) {
+    v("voxel", voxel, "voxel [m]", Length{1e-5, 1});
+    v("sized", sized, "sized");
+  }
+  template <class V>
+  void internal_lengths(V& v) {
+    v("band", band, "", Length{0, 2});
+    v("tuned", tuned, "");
+  }
+};
+
+TEST(Config, ScalesTunedLengthsThatAreNotOptions) {
+  WithTuned o;
+  SetKeys set;
+  read_options("session.yaml", YAML::Load("voxel: 0.004\n"), "stages.x", o, &set);
+  const std::vector<std::string> scaled = scale_unset_lengths(o, 2.0, set, "stages.x");
+  EXPECT_DOUBLE_EQ(o.voxel, 0.004);  // set: kept
+  EXPECT_DOUBLE_EQ(o.band, 0.24);
+  EXPECT_DOUBLE_EQ(o.tuned.margin, 0.06);
+  EXPECT_DOUBLE_EQ(o.sized.voxel, 0.012);
+  EXPECT_EQ(scaled, (std::vector<std::string>{"stages.x.sized.voxel", "stages.x.sized.tolerance",
+                                              "stages.x.sized.box", "stages.x.band",
+                                              "stages.x.tuned.margin"}));
+  EXPECT_FALSE(to_yaml(o)["band"].IsDefined());
+  EXPECT_EQ(describe_options(o).find("band"), std::string::npos);
+  try {
+    read_options("session.yaml", YAML::Load("band: 0.1\n"), "stages.x", o);
+    FAIL() << "a tuned value is not an option";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("unknown key 'band'"), std::string::npos) << e.what();
+  }
+}
+
 TEST(Config, DescribeMarksSubjectLengths) {
   const std::string text = describe_options(SizedOuter{});
   EXPECT_NE(text.find("voxel = 0.006 (scaled to the subject): voxel [m]"), std::string::npos);
