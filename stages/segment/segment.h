@@ -26,14 +26,16 @@
 
 namespace fourd::segment {
 
+// The options are the members visit() lists, with their help; the others are tuned values,
+// not options (docs/segment.md, "Advanced").
 struct SegmentOptions {
-  std::string method = "auto";    // auto | chroma | plate | masks
+  std::string method = "auto";
   int model_frames = 12;          // frames sampled per camera (over all takes) to learn the key
   double key_offset = 16;         // grey levels added to the keyness denominator (noise in shadows)
   int matte_radius = 3;           // window radius of local backdrop colours [px] (performer: -1)
-  int open_radius = 1;            // morphological opening radius [px] against speckle
+  int open_radius = 1;
   double min_component_fraction = 0.02;  // keep components at least this fraction of the largest
-  double max_hole_fraction = 0.0005;     // fill enclosed background holes up to this image fraction
+  double max_hole_fraction = 0.0005;
   double warn_foreground_min = 0.001;    // warn when a silhouette covers less of the image
   double warn_foreground_max = 0.5;      // ... or more
 
@@ -42,19 +44,10 @@ struct SegmentOptions {
     v("method", method,
       "auto (plate if plates/ exists, else masks if masks/ exists, else chroma) | chroma | plate "
       "| masks");
-    v("model_frames", model_frames, "frames sampled per camera to learn the key", Range{1, 10000});
-    v("key_offset", key_offset, "offset of the keyness denominator [grey levels]", Range{0, 255});
-    v("matte_radius", matte_radius, "window radius of the local matte colours [px]",
-      Range{2, 50});
-    v("open_radius", open_radius, "morphological opening radius [px]", Range{0, 20});
-    v("min_component_fraction", min_component_fraction,
-      "smallest kept component relative to the largest", Range{0, 1});
-    v("max_hole_fraction", max_hole_fraction, "largest filled hole [fraction of the image]",
-      Range{0, 1});
-    v("warn_foreground_min", warn_foreground_min, "warn below this foreground fraction",
-      Range{0, 1});
-    v("warn_foreground_max", warn_foreground_max, "warn above this foreground fraction",
-      Range{0, 1});
+    v("open_radius", open_radius, "morphological opening radius against speckle [px]",
+      Range{0, 20});
+    v("max_hole_fraction", max_hole_fraction,
+      "fill enclosed background holes up to this fraction of the image", Range{0, 1});
   }
   void check() const;
 };

@@ -67,8 +67,9 @@ struct Character {
   double height = 0;  // rest-pose height, metres
 };
 
-// The procedural performer. Shape from the options; clothing colours and patterns from the
-// seed. Same options and seed give bit-identical meshes, weights and texture.
+// The procedural performer. Shape from these values; clothing colours and patterns from the
+// seed. Same values and seed give bit-identical meshes, weights and texture. Not options: the
+// synthetic studio films one performer, and stages.synth.scale sizes the whole scene.
 struct CharacterOptions {
   std::string name = "performer";
   double height = 1.75;        // standing height, floor to the top of the head [m]
@@ -86,27 +87,6 @@ struct CharacterOptions {
   double skin_blend = 1.2;
   double trunk_skin_blend = 3;
   int skin_smoothing = 4;
-
-  template <class V>
-  void visit(V& v) {
-    v("name", name, "performer name");
-    v("height", height, "standing height [m]", Range{1.2, 2.2});
-    v("build", build, "girth relative to an average build", Range{0.75, 1.35});
-    v("target_vertices", target_vertices, "mesh vertex count", Range{3000, 10000});
-    v("texture_size", texture_size, "texture width and height [px]", Range{256, 4096});
-    v("skin_blend", skin_blend,
-      "skinning: width of the weights' blend between two bones, as a multiple of the body's "
-      "smooth-union radius (12 mm at 1.75 m tall); narrow blends stretch the skin inside a "
-      "bending joint many times over",
-      Range{0.1, 20});
-    v("trunk_skin_blend", trunk_skin_blend,
-      "skinning: the same for the bones where the limbs join the trunk (pelvis, spine, chest, "
-      "clavicles, upper arms, thighs): wider there, an armpit or groin stretches less as the limb "
-      "rises",
-      Range{0.1, 20});
-    v("skin_smoothing", skin_smoothing,
-      "skinning: rounds of averaging the weights over each vertex's neighbours", Range{0, 200});
-  }
 };
 
 // A watertight, manifold, outward-oriented body mesh meshed from an implicit body of

@@ -15,41 +15,43 @@
 
 namespace fourd::synth {
 
+// The options are the members visit() lists, with their help; the others are tuned values,
+// not options (docs/synth.md, "Advanced").
 struct RigOptions {
-  int count = 8;               // cameras equally spaced on a circle
-  double radius = 3.5;         // circle radius [m]
-  double height = 1.6;         // camera centre height above the floor [m]
-  double target_height = 0.9;  // all cameras look at (0, 0, target_height) [m]
-  int width = 640;             // image width [px]
-  int height_px = 480;         // image height [px]
-  double focal_px = 560;       // focal length [px]
-  double k1 = 0, k2 = 0;       // radial distortion
-  double p1 = 0, p2 = 0;       // tangential distortion
+  int count = 8;
+  double radius = 3.5;
+  double height = 1.6;
+  double target_height = 0.9;  // all cameras look at (0, 0, target_height) [m]: about the
+                               // middle of a 1.75 m performer
+  int width = 640;
+  int height_px = 480;
+  double focal_px = 560;
+  double k1 = 0, k2 = 0;
+  double p1 = 0, p2 = 0;       // tangential distortion (the sample studio's lenses have
+                               // radial distortion only)
   double start_angle = 0;      // angle of camera 0 on the circle [deg]
 
   template <class V>
   void visit(V& v) {
-    v("count", count, "number of cameras on the circle", Range{1, 256});
+    v("count", count, "number of cameras, equally spaced on a circle", Range{1, 256});
     v("radius", radius, "circle radius [m]", Range{0.5, 100});
-    v("height", height, "camera height [m]", Range{0, 20});
-    v("target_height", target_height, "height of the look-at point [m]", Range{0, 10});
+    v("height", height, "camera centre height above the floor [m]", Range{0, 20});
     v("width", width, "image width [px]", Range{16, 16384});
     v("height_px", height_px, "image height [px]", Range{16, 16384});
     v("focal_px", focal_px, "focal length [px]", Range{1, 100000});
     v("k1", k1, "radial distortion k1", Range{-1, 1});
     v("k2", k2, "radial distortion k2", Range{-1, 1});
-    v("p1", p1, "tangential distortion p1", Range{-0.1, 0.1});
-    v("p2", p2, "tangential distortion p2", Range{-0.1, 0.1});
-    v("start_angle", start_angle, "angle of camera 0 [deg]", Range{-360, 360});
   }
 };
 
 // Cameras named cam00, cam01, ... on the circle, all looking at the volume centre.
 std::vector<Camera> make_rig(const RigOptions& options);
 
+// Options: the members visit() lists; the lighting and the backdrop's shape are tuned values,
+// not options (docs/synth.md, "Advanced").
 struct StudioOptions {
-  int samples_per_pixel = 4;         // anti-aliasing samples on edge pixels (1 = none)
-  double noise_sigma = 2.0;          // sensor noise, std-dev in 8-bit grey levels
+  int samples_per_pixel = 4;
+  double noise_sigma = 2.0;
   double light_elevation = 60;       // key light elevation [deg]
   double light_azimuth = 30;         // key light azimuth [deg]
   double ambient = 0.35;             // ambient light fraction
@@ -57,24 +59,17 @@ struct StudioOptions {
   double backdrop_variation = 0.08;  // relative low-frequency brightness variation of the screen
   int shadow_samples = 32;           // light samples per shaded point (soft shadows; 1 = hard)
   double light_radius = 4;           // angular radius of the key light [deg] (penumbra width)
-  // What surrounds the volume: "green" or "blue" (a chroma screen and floor of that paint),
-  // "#RRGGBB" (a screen and floor of that colour), or "room" (a furnished room, no screen: synth
-  // also writes plates of the empty room and lets the lights flicker a little).
   std::string backdrop = "green";
 
   template <class V>
   void visit(V& v) {
-    v("samples_per_pixel", samples_per_pixel, "anti-aliasing samples per pixel", Range{1, 64});
-    v("noise_sigma", noise_sigma, "sensor noise std-dev [grey levels]", Range{0, 50});
-    v("light_elevation", light_elevation, "key light elevation [deg]", Range{0, 90});
-    v("light_azimuth", light_azimuth, "key light azimuth [deg]", Range{-360, 360});
-    v("ambient", ambient, "ambient light fraction", Range{0, 1});
-    v("wall_distance", wall_distance, "backdrop radius [m]", Range{1, 100});
-    v("backdrop_variation", backdrop_variation, "backdrop brightness variation", Range{0, 1});
-    v("shadow_samples", shadow_samples, "light samples per point (soft shadows)", Range{1, 64});
-    v("light_radius", light_radius, "angular radius of the key light [deg]", Range{0, 20});
+    v("samples_per_pixel", samples_per_pixel,
+      "anti-aliasing samples on edge pixels (1: none)", Range{1, 64});
+    v("noise_sigma", noise_sigma, "sensor noise std-dev [8-bit grey levels]", Range{0, 50});
     v("backdrop", backdrop,
-      "green | blue | #RRGGBB (chroma screen and floor) | room (furnished room, with plates/)");
+      "what surrounds the volume: green | blue | #RRGGBB (a chroma screen and floor of that "
+      "colour) | room (a furnished room, no screen: synth also writes plates/ of the empty room "
+      "and lets the lights flicker a little)");
   }
   void check() const;
   bool room() const { return backdrop == "room"; }

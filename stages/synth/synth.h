@@ -18,25 +18,27 @@ namespace fourd::synth {
 // Perturbation of the calibration written to calibration/ (the images are rendered with the
 // true cameras): lets the calibration check show that refinement recovers the truth.
 struct CalibrationNoise {
-  double rotation_deg = 0;    // std-dev of a random rotation per camera [deg]
-  double translation_mm = 0;  // std-dev of a random translation per camera [mm]
-  double focal_pct = 0;       // std-dev of a relative focal-length error [%]
+  double rotation_deg = 0;
+  double translation_mm = 0;
+  double focal_pct = 0;
   template <class V>
   void visit(V& v) {
-    v("rotation_deg", rotation_deg, "rotation error std-dev [deg]", Range{0, 10});
-    v("translation_mm", translation_mm, "translation error std-dev [mm]", Range{0, 500});
-    v("focal_pct", focal_pct, "focal length error std-dev [%]", Range{0, 20});
+    v("rotation_deg", rotation_deg, "std-dev of a random rotation per camera [deg]",
+      Range{0, 10});
+    v("translation_mm", translation_mm, "std-dev of a random translation per camera [mm]",
+      Range{0, 500});
+    v("focal_pct", focal_pct, "std-dev of a relative focal-length error [%]", Range{0, 20});
   }
   bool any() const { return rotation_deg > 0 || translation_mm > 0 || focal_pct > 0; }
 };
 
 struct SynthOptions {
-  std::uint64_t seed = 1;  // every random choice derives from it
-  CharacterOptions character;
+  std::uint64_t seed = 1;
+  CharacterOptions character;  // the performer (not options: one performer, sized by `scale`)
   RigOptions rig;
   StudioOptions studio;
   CalibrationNoise calibration_noise;
-  bool center_takes = true;  // shift each take so its ground path is centred in the volume
+  bool center_takes = true;
   // Size of the whole scene relative to the one described: performer, motion, rig and studio
   // together, as a studio filming a smaller subject puts its cameras closer. Pinhole images are
   // the same at any scale, so the capture is rendered at scale 1 and only what is metric is
@@ -47,10 +49,9 @@ struct SynthOptions {
 
   template <class V>
   void visit(V& v) {
-    v("seed", seed, "random seed (same seed, same bytes)");
-    v("character", character, "the procedural performer");
+    v("seed", seed, "random seed: every random choice derives from it (same seed, same bytes)");
     v("rig", rig, "camera rig");
-    v("studio", studio, "lighting, backdrop, noise");
+    v("studio", studio, "backdrop, noise, anti-aliasing");
     v("calibration_noise", calibration_noise, "error added to the written calibration");
     v("center_takes", center_takes,
       "shift each take so its ground path is centred on the volume (ignores start_position)");
