@@ -32,8 +32,10 @@
 
 namespace fourd::reconstruct {
 
+// The options are the members visit() lists, with their help; the others are tuned values,
+// not options (docs/reconstruct.md, "Advanced").
 struct CalibrationCheckOptions {
-  bool enabled = true;          // check when the stage runs over the whole session
+  bool enabled = true;
   std::string take;             // take of the checked frame ("": the first take)
   int frame = 0;                // the checked frame
   int check_frames = 16;        // frames triangulated: the checked one and others spread
@@ -43,10 +45,11 @@ struct CalibrationCheckOptions {
                                 // (16 frames: the true calibration 0.6-1.5 px per camera,
                                 // one perturbed by 0.3 deg, 10 mm, 1 % focal 1.7-4.8 px)
   int min_points = 15;          // fewer points in a camera's images: too few to judge it
-  bool refine = false;          // refine the calibration by bundle adjustment
-  bool refine_focal_length = false;  // ... focal lengths too (principal points and distortion
-                                     // stay); off: from points in the middle of the rig a focal
-                                     // length is barely separable from the camera's distance
+  bool refine = false;
+  bool refine_focal_length = false;  // refinement adjusts focal lengths too (principal points
+                                     // and distortion stay); off: from points in the middle of
+                                     // the rig a focal length is barely separable from the
+                                     // camera's distance
   int refine_frames = 60;       // frames spread through the session: 2/3 fitted, 1/3 held out
   double refine_error_px = 2;   // refinement triangulates at max_error_px, then 2x, then 1x this
   int min_refine_points = 100;  // fewer triangulated points: no refinement (it would overfit)
@@ -56,40 +59,13 @@ struct CalibrationCheckOptions {
   int max_features = 8192;      // SIFT features per image
   double peak_threshold = 0.002;  // SIFT peak threshold (COLMAP's default 0.0067 finds few
                                   // features on small images)
-  std::string executable = "colmap";  // name on PATH or path
-  double timeout_s = 300;       // a COLMAP command still running after this is killed and rerun
-
+  std::string executable = "colmap";
+  double timeout_s = 300;
   template <class V>
   void visit(V& v) {
     v("enabled", enabled, "check the calibration when the whole session is reconstructed");
-    v("take", take, "take of the checked frame (empty: the first take)");
-    v("frame", frame, "checked frame", Range{0, 1e9});
-    v("check_frames", check_frames,
-      "frames the check triangulates: the checked one and the others spread through the session",
-      Range{1, 1e6});
-    v("warn_error_px", warn_error_px, "warn above this median reprojection error [px]",
-      Range{0, 1000});
-    v("min_points", min_points,
-      "a camera with fewer triangulated points in its images is not judged (too few)",
-      Range{1, 1e6});
-    v("refine", refine, "refine the calibration with COLMAP's bundle adjustment");
-    v("refine_focal_length", refine_focal_length, "refinement also adjusts focal lengths");
-    v("refine_frames", refine_frames,
-      "frames refinement uses, spread through the session (2 of 3 fitted, 1 held out)",
-      Range{3, 1e4});
-    v("refine_error_px", refine_error_px,
-      "final reprojection error bound of the points refinement fits [px]", Range{0.1, 100});
-    v("min_refine_points", min_refine_points,
-      "refine only with at least this many triangulated points", Range{0, 1e9});
-    v("max_refine_shift", max_refine_shift,
-      "reject a refinement that moves a camera centre farther than this [m]", Range{0, 1e3});
-    v("max_refine_turn_deg", max_refine_turn_deg,
-      "reject a refinement that turns a camera more than this [deg]", Range{0, 180});
-    v("max_error_px", max_error_px, "largest reprojection error triangulation accepts [px]",
-      Range{0.5, 1000});
-    v("max_features", max_features, "SIFT features per image", Range{100, 100000});
-    v("peak_threshold", peak_threshold, "SIFT peak threshold (lower: more features)",
-      Range{0.0001, 0.1});
+    v("refine", refine,
+      "refine the calibration with COLMAP's bundle adjustment (as --refine-calibration does)");
     v("executable", executable, "colmap executable (name on PATH or path)");
     v("timeout_s", timeout_s,
       "a COLMAP command still running after this long is killed and run once more [s]",

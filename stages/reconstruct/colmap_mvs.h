@@ -21,8 +21,11 @@
 
 namespace fourd::reconstruct {
 
+// The options are the members visit() lists, with their help; the others are tuned values,
+// not options (docs/reconstruct.md, "Advanced"); internal_lengths() lists the tuned lengths
+// scaled to the subject.
 struct ColmapMvsOptions {
-  std::string executable = "colmap";  // name on PATH or a path
+  std::string executable = "colmap";
   int min_num_pixels = 2;             // stereo_fusion: pixels (views) a fused point needs
   double max_reproj_error = 2;        // stereo_fusion [px]
   double max_depth_error = 0.01;      // stereo_fusion: relative depth difference
@@ -35,28 +38,15 @@ struct ColmapMvsOptions {
   bool keep_workspace = false;        // keep the per-frame workspace (for inspection)
   double timeout_s = 300;             // a COLMAP command still running after this is killed
                                       // and rerun
-
   template <class V>
   void visit(V& v) {
     v("executable", executable, "colmap executable (name on PATH or path)");
-    v("timeout_s", timeout_s,
-      "a COLMAP command still running after this long is killed and run once more [s]",
-      Range{1, 1e6});
-    v("min_num_pixels", min_num_pixels, "stereo_fusion min_num_pixels", Range{1, 1000});
-    v("max_reproj_error", max_reproj_error, "stereo_fusion max_reproj_error [px]", Range{0, 100});
-    v("max_depth_error", max_depth_error, "stereo_fusion max_depth_error (relative)",
-      Range{0, 1});
-    v("max_normal_error", max_normal_error, "stereo_fusion max_normal_error [deg]",
-      Range{0, 180});
-    v("poisson_depth", poisson_depth, "poisson_mesher depth", Range{4, 16});
-    v("poisson_trim", poisson_trim, "poisson_mesher trim", Range{0, 20});
-    v("hull_trim", hull_trim, "cut faces this far outside the visual hull [m]", Length{0, 1});
-    v("tie_tolerance", tie_tolerance,
-      "depth maps that agree this closely share a tie point in the workspace [m]",
-      Length{1e-6, 1});
-    v("normal_max_jump", normal_max_jump,
-      "the depth maps' normals skip depth jumps larger than this [m]", Length{1e-6, 1});
-    v("keep_workspace", keep_workspace, "keep the COLMAP workspace of each frame");
+  }
+  template <class V>
+  void internal_lengths(V& v) {
+    v("hull_trim", hull_trim, "", Length{0, 1});
+    v("tie_tolerance", tie_tolerance, "", Length{1e-6, 1});
+    v("normal_max_jump", normal_max_jump, "", Length{1e-6, 1});
   }
 };
 

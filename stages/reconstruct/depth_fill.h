@@ -21,17 +21,15 @@
 
 namespace fourd::reconstruct {
 
+// The options are the members visit() lists, with their help; the others are tuned values,
+// not options (docs/reconstruct.md, "Advanced").
 struct DepthFillOptions {
   bool enabled = true;
   int max_pixels = 20000;        // largest hole filled [px]
   double min_enclosed = 0.6;     // fraction of the hole's border that must have matched depths
-
   template <class V>
   void visit(V& v) {
     v("enabled", enabled, "fill holes of the depth maps from the matched depths around them");
-    v("max_pixels", max_pixels, "largest hole filled [px]", Range{1, 10000000});
-    v("min_enclosed", min_enclosed, "fraction of a hole's border that must have matched depths",
-      Range{0, 1});
   }
 };
 

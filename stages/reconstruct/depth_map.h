@@ -23,47 +23,45 @@
 
 namespace fourd::reconstruct {
 
+// The options are the members visit() lists, with their help; the others are tuned values,
+// not options (docs/reconstruct.md, "Advanced"); internal_lengths() lists the tuned lengths
+// scaled to the subject.
 struct DepthMapOptions {
   int neighbours = 2;                  // cameras matched against each reference camera
   double max_angle_deg = 100;          // ... whose optical axes differ by at most this [deg]
-  int window_radius = 2;               // NCC window is (2 r + 1)^2 pixels
+  int window_radius = 2;
   double front_margin = 0.01;          // depth searched in front of the hull surface [m]
   double search_depth = 0.10;          // depth searched behind the hull surface [m]
   double step = 0.0025;                // depth step of the sweep [m]
-  double min_ncc = 0.7;                // best mean NCC below this: no depth
+  double min_ncc = 0.7;
   double min_texture = 1.5;            // window standard deviation below this [grey levels]: no depth
   double min_window_fill = 0.5;        // fraction of the window inside the silhouette
   double occlusion_margin = 0.10;      // a neighbour sees a point at most this far behind its hull [m]
-  double prefilter_sigma = 0.0;        // Gaussian blur of the grey images before matching [px]
+  double prefilter_sigma = 0.0;
   // How the neighbours' NCC scores make a pixel's score: "mean" of the neighbours that see the
   // point, or the "best" one (a point one neighbour sees past an occluder still matches).
   std::string neighbour_score = "best";
-  int consistent_views = 1;            // other depth maps that must agree with a depth (0: no check)
-  double consistency_tolerance = 0.01; // ... within this distance along their rays [m]
+  int consistent_views = 1;
+  double consistency_tolerance = 0.01; // depths agreeing this closely along their rays [m]
 
   template <class V>
   void visit(V& v) {
-    v("neighbours", neighbours, "cameras matched against each reference camera", Range{1, 64});
-    v("max_angle_deg", max_angle_deg, "largest angle between matched cameras' axes [deg]",
-      Range{1, 180});
-    v("window_radius", window_radius, "NCC window radius [px]", Range{1, 15});
-    v("front_margin", front_margin, "depth searched in front of the hull [m]", Length{0, 0.5});
-    v("search_depth", search_depth, "depth searched behind the hull [m]", Length{1e-5, 2});
-    v("step", step, "depth step of the sweep [m]", Length{1e-6, 0.1});
-    v("min_ncc", min_ncc, "smallest accepted mean NCC", Range{-1, 1});
-    v("min_texture", min_texture, "smallest window standard deviation [grey levels]",
-      Range{0, 255});
-    v("min_window_fill", min_window_fill, "smallest fraction of the window in the silhouette",
-      Range{0, 1});
-    v("occlusion_margin", occlusion_margin,
-      "how far behind a neighbour's hull surface a point can still be seen [m]", Length{0, 2});
-    v("prefilter_sigma", prefilter_sigma, "Gaussian blur before matching [px]", Range{0, 5});
-    v("neighbour_score", neighbour_score,
-      "mean | best: a pixel's score is the mean or the best of its neighbours' NCC");
+    v("window_radius", window_radius, "NCC window radius [px]: the window is (2 r + 1)^2 pixels",
+      Range{1, 15});
+    v("min_ncc", min_ncc, "smallest accepted mean NCC (best mean NCC below this: no depth)",
+      Range{-1, 1});
+    v("prefilter_sigma", prefilter_sigma, "Gaussian blur of the grey images before matching [px]",
+      Range{0, 5});
     v("consistent_views", consistent_views,
       "other cameras' depth maps that must agree with a depth (0: keep every depth)", Range{0, 64});
-    v("consistency_tolerance", consistency_tolerance,
-      "largest depth difference that counts as agreeing [m]", Length{1e-6, 0.5});
+  }
+  template <class V>
+  void internal_lengths(V& v) {
+    v("front_margin", front_margin, "", Length{0, 0.5});
+    v("search_depth", search_depth, "", Length{1e-5, 2});
+    v("step", step, "", Length{1e-6, 0.1});
+    v("occlusion_margin", occlusion_margin, "", Length{0, 2});
+    v("consistency_tolerance", consistency_tolerance, "", Length{1e-6, 0.5});
   }
   void check() const;
 };

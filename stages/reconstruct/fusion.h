@@ -16,12 +16,15 @@
 
 namespace fourd::reconstruct {
 
+// The options are the members visit() lists, with their help; the others are tuned values,
+// not options (docs/reconstruct.md, "Advanced"); internal_lengths() lists the tuned lengths
+// scaled to the subject.
 struct FusionOptions {
   double truncation = 0.015;   // TSDF truncation [m]
   double band = 0.12;          // depth inside the hull where depth maps are fused [m]
-  // Weight of the hull's vote relative to one depth map's. Below 1, so that one or two cameras
-  // that see into a concavity (between the legs, under the arms) can carve the hull there;
-  // the depths have passed the consistency check, so a lone wrong match does not.
+  // Below 1, so that one or two cameras that see into a concavity (between the legs, under the
+  // arms) can carve the hull there; the depths have passed the consistency check, so a lone
+  // wrong match does not.
   double hull_weight = 0.3;
   double score_weight = 1.0;   // 1: weight votes by their NCC score above min_ncc; 0: equally
   // Weight of a depth filled in from the matched ones around a hole (depth_fill.h), relative
@@ -29,16 +32,15 @@ struct FusionOptions {
   // (on the default sample: 0.05 gives the best completeness and F-score, 0.1 the best p90
   // accuracy, 0.3 loses completeness).
   double filled_weight = 0.05;
-
   template <class V>
   void visit(V& v) {
-    v("truncation", truncation, "TSDF truncation distance [m]", Length{1e-5, 0.5});
-    v("band", band, "depth inside the hull where depth maps are fused [m]", Length{0, 2});
-    v("hull_weight", hull_weight, "weight of the hull's vote relative to one depth map",
+    v("hull_weight", hull_weight, "weight of the hull's vote relative to one depth map's",
       Range{0, 1000});
-    v("score_weight", score_weight, "how much NCC scores weight the votes (0..1)", Range{0, 1});
-    v("filled_weight", filled_weight,
-      "weight of a filled-in depth's vote relative to one matched depth's", Range{0, 1000});
+  }
+  template <class V>
+  void internal_lengths(V& v) {
+    v("truncation", truncation, "", Length{1e-5, 0.5});
+    v("band", band, "", Length{0, 2});
   }
 };
 

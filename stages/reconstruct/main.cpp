@@ -12,9 +12,9 @@ int main(int argc, char** argv) {
       "calibration in reconstruct/calibration_check/. Split into jobs (--take/--frames), each "
       "writes only its frames; the --finish job then writes the report and the check. Lengths "
       "marked (scaled to the subject) are defaults for a 1.75 m subject: unless session.yaml or "
-      "a preset sets them, they are scaled to the subject's size, measured on the visual hull "
-      "of a few frames (reconstruct/subject.json, reconstruct/options.yaml has the values "
-      "used); the capture volume defaults to the volume the cameras share. Every frame's "
+      "a preset sets them, they are scaled to the subject's size (so are the tuned lengths that "
+      "are not options), measured on the visual hull of a few frames (reconstruct/subject.json, "
+      "reconstruct/options.yaml has the values used); the capture volume defaults to the volume the cameras share. Every frame's "
       "result is checked against its silhouettes: implausible ones are flagged with warnings.",
       /*takes_frame_range=*/true, /*supports_oracle=*/true,
       {fourd::options_section<fourd::reconstruct::ReconstructOptions>("reconstruct")}};

@@ -9,12 +9,10 @@
 
 namespace fourd::reconstruct {
 
+// The options are the members visit() lists, with their help; the others are tuned values,
+// not options (docs/reconstruct.md, "Advanced").
 struct RemeshOptions {
-  int target_vertices = 5000;   // vertices of the final mesh (0: keep the fused surface as is)
-  // "relax": quadric decimation to the target (its vertices gather where the surface curves),
-  // then tangential relaxation into better-shaped triangles; "isotropic": decimation to
-  // decimate_factor x the target, then isotropic remeshing to edges of one length. Both end
-  // with every vertex on the input surface.
+  int target_vertices = 5000;
   std::string mode = "relax";
   // Relaxation or remeshing iterations (0: decimation only). Each relaxation evens the
   // triangles out but moves vertices away from where the decimation put them on curved parts:
@@ -22,16 +20,15 @@ struct RemeshOptions {
   // 0.9503 with one, 0.9495 with three; triangles under 20 degrees 24 %, 9 %, 6 %.
   int iterations = 1;
   double decimate_factor = 1.5; // mode isotropic: first decimate to this many times the target
-
   template <class V>
   void visit(V& v) {
     v("target_vertices", target_vertices, "vertices of the final mesh (0: no remeshing)",
       Range{0, 10000000});
-    v("mode", mode, "relax (decimation, then tangential relaxation) | isotropic");
-    v("iterations", iterations, "relaxation or isotropic remeshing iterations", Range{0, 100});
-    v("decimate_factor", decimate_factor,
-      "mode isotropic: quadric decimation to this many times target_vertices first",
-      Range{1, 1000});
+    v("mode", mode,
+      "relax (quadric decimation to the target, its vertices gathering where the surface "
+      "curves, then tangential relaxation into better-shaped triangles) | isotropic (decimation "
+      "to 1.5 x the target, then isotropic remeshing to edges of one length); both end with "
+      "every vertex on the input surface");
   }
 };
 

@@ -21,26 +21,20 @@
 
 namespace fourd::reconstruct {
 
+// The options are the members visit() lists, with their help; the others are tuned values,
+// not options (docs/reconstruct.md, "Advanced").
 struct PlausibilityOptions {
   bool enabled = true;
-  double min_hull_coverage = 0.5;
-  double min_mesh_coverage = 0.8;
-  double max_mesh_spill = 0.2;
-  double min_size_ratio = 0.25;
-  int min_voxels = 40;
-
+  double min_hull_coverage = 0.5;  // warn when the hull's outline covers less of a camera's
+                                   // silhouette
+  double min_mesh_coverage = 0.8;  // ... or the mesh's outline
+  double max_mesh_spill = 0.2;     // warn when more of the mesh's outline lies outside it
+  double min_size_ratio = 0.25;    // warn when the mesh's volume or extent is below this
+                                   // fraction of the hull's
+  int min_voxels = 40;             // warn when the hull spans fewer voxels
   template <class V>
   void visit(V& v) {
     v("enabled", enabled, "check every frame's result against its silhouettes and warn");
-    v("min_hull_coverage", min_hull_coverage,
-      "warn when the hull's outline covers less of a camera's silhouette", Range{0, 1});
-    v("min_mesh_coverage", min_mesh_coverage,
-      "warn when the mesh's outline covers less of a camera's silhouette", Range{0, 1});
-    v("max_mesh_spill", max_mesh_spill,
-      "warn when more of the mesh's outline lies outside a camera's silhouette", Range{0, 1});
-    v("min_size_ratio", min_size_ratio,
-      "warn when the mesh's volume or extent is below this fraction of the hull's", Range{0, 1});
-    v("min_voxels", min_voxels, "warn when the hull spans fewer voxels", Range{0, 100000});
   }
 };
 

@@ -56,12 +56,13 @@
 
 namespace fourd::reconstruct {
 
-// Sweeps guided by the previous pass's fused surface (method stereo).
+// Sweeps guided by the previous pass's fused surface (method stereo). The option is `passes`;
+// the others are tuned values (docs/reconstruct.md, "Advanced"), their lengths scaled to the
+// subject (internal_lengths).
 struct GuidedPassOptions {
-  // Guided sweeps after the hull-guided one (0: none). Each pass's surface guides the next
-  // closer to the true one: on validation's 60 frames of the default sample (three relaxation
-  // steps), completeness 0.9481 with one pass, 0.9495 with two, 0.9500 with three, each pass
-  // ~0.3 s per frame.
+  // Each pass's surface guides the next closer to the true one: on validation's 60 frames of the
+  // default sample (three relaxation steps), completeness 0.9481 with one pass, 0.9495 with two,
+  // 0.9500 with three, each pass ~0.3 s per frame.
   int passes = 2;
   double filled_weight = 1.0;     // weight of filled-in depths in the guide surface's fusion
   double front_margin = 0.015;    // depth searched in front of the guide surface [m]
@@ -70,33 +71,32 @@ struct GuidedPassOptions {
 
   template <class V>
   void visit(V& v) {
-    v("passes", passes, "sweeps guided by the previous pass's surface (0: none)", Range{0, 10});
-    v("filled_weight", filled_weight,
-      "weight of filled-in depths in the guide's fusion (relative to a matched depth)",
-      Range{0, 1000});
-    v("front_margin", front_margin, "depth searched in front of the guide [m]", Length{0, 0.5});
-    v("search_depth", search_depth, "depth searched behind the guide [m]", Length{1e-5, 2});
-    v("occlusion_margin", occlusion_margin,
-      "how far behind a neighbour's guide surface a point can still be seen [m]", Length{0, 2});
+    v("passes", passes, "sweeps after the hull-guided one, each guided by the previous pass's "
+      "surface (0: none)", Range{0, 10});
+  }
+  template <class V>
+  void internal_lengths(V& v) {
+    v("front_margin", front_margin, "", Length{0, 0.5});
+    v("search_depth", search_depth, "", Length{1e-5, 2});
+    v("occlusion_margin", occlusion_margin, "", Length{0, 2});
   }
 };
 
+// Reconstruct's options: the members visit() lists (their help is there), and theirs; the
+// others are tuned values, not options (docs/reconstruct.md, "Advanced").
 struct ReconstructOptions {
-  // "stereo": hull refined by multi-view stereo, fused here (TSDF); "colmap": the same depth
-  // maps fused by COLMAP's stereo_fusion and meshed by poisson_mesher; "visual_hull": the hull.
   std::string method = "stereo";
-  int min_cameras = 3;             // usable cameras a frame needs
-  bool write_visual_hull = true;   // also write visual_hull/<take>/<frame>.ply
-  int frames_in_parallel = 0;      // frames reconstructed at once (0: as many as threads)
-  // Images (and their silhouettes) with more pixels are reduced to about this many for the
-  // reconstruction (0: never). The pixel-sized options (NCC windows, blur, hole sizes) are tuned
-  // at 640x480, where the subject spans ~300 px; a 1920x1080 camera reduced to 943x530 keeps
-  // sixteen cameras' frame within the time budget (docs/reconstruct.md, "Studio size").
+  int min_cameras = 3;
+  bool write_visual_hull = true;
+  int frames_in_parallel = 0;
+  // The pixel-sized values (NCC windows, blur, hole sizes) are tuned at 640x480, where the
+  // subject spans ~300 px; a 1920x1080 camera reduced to 943x530 keeps sixteen cameras' frame
+  // within the time budget (docs/reconstruct.md, "Studio size").
   int max_image_pixels = 500000;
-  // Isosurfaces are extracted from every n-th sample of the fields: a fine grid's isosurface
-  // (several 100k vertices) costs seconds to decimate. On the default sample (6 mm voxels) the
-  // 12 mm isosurface decimated to 5,000 vertices covers more of the true surface than the
-  // 18 mm one (completeness 0.941 -> 0.947): the decimation keeps its creases.
+  // A fine grid's isosurface (several 100k vertices) costs seconds to decimate. On the default
+  // sample (6 mm voxels) the 12 mm isosurface decimated to 5,000 vertices covers more of the
+  // true surface than the 18 mm one (completeness 0.941 -> 0.947): the decimation keeps its
+  // creases.
   int isosurface_step = 2;
   // The visual hull written for validation is the isosurface of every n-th hull sample, not
   // decimated (cheap; at 4 x 6 mm it is within ~1-2 mm of the full-resolution hull).
@@ -119,20 +119,20 @@ struct ReconstructOptions {
 
   template <class V>
   void visit(V& v) {
-    v("method", method, "stereo | colmap | visual_hull");
+    v("method", method,
+      "stereo (the hull refined by multi-view stereo, fused here as a TSDF) | colmap (the same "
+      "depth maps fused by COLMAP's stereo_fusion, meshed by poisson_mesher) | visual_hull (the "
+      "hull alone)");
     v("min_cameras", min_cameras, "usable cameras a frame needs", Range{2, 1000});
-    v("write_visual_hull", write_visual_hull, "also write the visual hull meshes");
-    v("frames_in_parallel", frames_in_parallel, "frames reconstructed at once (0: threads)",
-      Range{0, 1024});
+    v("write_visual_hull", write_visual_hull, "also write visual_hull/<take>/<frame>.ply");
+    v("frames_in_parallel", frames_in_parallel,
+      "frames reconstructed at once (0: as many as threads)", Range{0, 1024});
     v("max_image_pixels", max_image_pixels,
-      "larger images (and silhouettes) are reduced to about this many pixels (0: never)",
+      "images (and their silhouettes) with more pixels are reduced to about this many for the "
+      "reconstruction (0: never)",
       Range{0, 1e9});
     v("isosurface_step", isosurface_step,
       "isosurfaces from every n-th field sample (1: the full grid)", Range{1, 8});
-    v("visual_hull_step", visual_hull_step,
-      "written visual hull: isosurface of every n-th hull sample", Range{1, 8});
-    v("project_to_field", project_to_field,
-      "put the final vertices on the full-resolution field's zero level");
     v("visual_hull", visual_hull, "visual hull");
     v("depth", depth, "depth maps (hull-guided plane sweep)");
     v("depth_fill", depth_fill, "holes of the depth maps filled before fusion (method stereo)");

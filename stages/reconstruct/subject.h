@@ -30,22 +30,19 @@
 
 namespace fourd::reconstruct {
 
+// The options are the members visit() lists, with their help; the others are tuned values,
+// not options (docs/reconstruct.md, "Advanced").
 struct SubjectScaleOptions {
-  // The subject's largest extent [m], when known; 0: measured from the visual hull.
   double subject_size = 0;
   int sample_frames = 5;       // frames the hull is measured on, spread through the session
   int grid = 64;               // coarse hull cells along the shared volume's largest side
-  int steps_per_decade = 20;   // the factor is rounded to 10^(k / steps) (0: not rounded)
-
+  int steps_per_decade = 20;   // the factor is rounded to 10^(k / steps) (0: not rounded), so
+                               // that split jobs derive the same factor
   template <class V>
   void visit(V& v) {
     v("subject_size", subject_size,
-      "largest extent of the subject [m] (0: measured from the visual hull)", Range{0, 1000});
-    v("sample_frames", sample_frames, "frames the subject is measured on", Range{1, 1000});
-    v("grid", grid, "measuring hull: cells along the shared volume's largest side",
-      Range{8, 512});
-    v("steps_per_decade", steps_per_decade,
-      "the scale factor is rounded to 10^(k/steps) (0: as measured)", Range{0, 1000});
+      "largest extent of the subject [m], when known (0: measured from the visual hull)",
+      Range{0, 1000});
   }
 };
 

@@ -33,7 +33,11 @@ void VisualHullOptions::check() const {
   for (int i = 0; i < 3; ++i) {
     if (!(volume_min[i] < volume_max[i])) throw ConfigError("volume_min must be below volume_max");
   }
-  if (coarse_voxel < voxel_size) throw ConfigError("coarse_voxel must not be below voxel_size");
+  if (coarse_voxel < voxel_size) {
+    throw ConfigError(fmt::format(
+        "voxel_size {} must not exceed the coarse pass's voxel ({} m at this subject's size)",
+        voxel_size, coarse_voxel));
+  }
 }
 
 cv::Mat silhouette_signed_distance(const cv::Mat& silhouette) {

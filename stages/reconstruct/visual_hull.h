@@ -13,32 +13,38 @@
 
 namespace fourd::reconstruct {
 
+// The options are the members visit() lists, with their help; the others are tuned values,
+// not options (docs/reconstruct.md, "Advanced"); internal_lengths() lists the tuned lengths
+// scaled to the subject.
 struct VisualHullOptions {
-  double voxel_size = 0.006;    // fine grid spacing [m]
+  double voxel_size = 0.006;
   double coarse_voxel = 0.08;   // first pass over the whole volume [m]
   double margin = 0.03;         // added around the coarse bounding box [m]
   int block = 8;                // fine voxels per block edge; blocks far from the surface are skipped
-  std::vector<double> volume_min = {-3.0, -3.0, -0.05};  // capture volume searched [m]
+  std::vector<double> volume_min = {-3.0, -3.0, -0.05};
   std::vector<double> volume_max = {3.0, 3.0, 2.4};
   int min_views = 2;            // a point seen by fewer cameras cannot be carved and counts as outside
-  // ... nor by fewer than this fraction of the cameras: the performer is seen by every camera,
-  // while a point near the volume's border seen by only two opposite cameras, in line with the
-  // performer, would be a phantom part of the hull (with 4 cameras it can outgrow the body).
   double min_view_fraction = 0.75;
 
   template <class V>
   void visit(V& v) {
     v("voxel_size", voxel_size, "fine voxel size [m]", Length{1e-5, 0.1});
-    v("coarse_voxel", coarse_voxel, "coarse voxel size [m]", Length{1e-4, 0.5});
-    v("margin", margin, "margin around the coarse bounding box [m]", Length{0, 1});
-    v("block", block, "fine voxels per block edge", Range{2, 64});
     v("volume_min", volume_min,
-      "capture volume lower corner [m] (unset: the volume the cameras share, subject.h)");
+      "capture volume searched, lower corner [m] (unset: the volume the cameras share, "
+      "subject.h)");
     v("volume_max", volume_max,
-      "capture volume upper corner [m] (unset: the volume the cameras share)");
-    v("min_views", min_views, "cameras that must see a point", Range{1, 1000});
-    v("min_view_fraction", min_view_fraction, "fraction of the cameras that must see a point",
+      "capture volume searched, upper corner [m] (unset: the volume the cameras share)");
+    v("min_view_fraction", min_view_fraction,
+      "fraction of the cameras that must see a point (and at least 2): the performer is seen by "
+      "every camera, while a point near the volume's border seen by only two opposite cameras, in "
+      "line with the performer, would be a phantom part of the hull (with 4 cameras it can "
+      "outgrow the body)",
       Range{0, 1});
+  }
+  template <class V>
+  void internal_lengths(V& v) {
+    v("coarse_voxel", coarse_voxel, "", Length{1e-4, 0.5});
+    v("margin", margin, "", Length{0, 1});
   }
   void check() const;
 };
