@@ -1384,7 +1384,8 @@ void run_finish_job(const fs::path& out, const StageArgs& args, const AlignOptio
 
 }  // namespace
 
-void run_align(const Session& session, const StageArgs& args) {
+void run_align(const Session& session, const StageArgs& args,
+               const std::function<void(AlignOptions&)>& adjust) {
   const fs::path in = stage_input_dir(session, args, "reconstruct");
   const fs::path out = stage_output_dir(session, args, "align");
   // The subject the lengths scale to: reconstruct's, or measured on a few input meshes when
@@ -1401,13 +1402,11 @@ void run_align(const Session& session, const StageArgs& args) {
     return measure_subject(meshes, in.string());
   });
   AlignOptions options;
-  SetKeys set_keys;
-  std::size_t scaled = subject_stage_options(session, "align", subject, options, &set_keys).size();
+  std::size_t scaled = subject_stage_options(session, "align", subject, options).size();
   // The creases' curvature threshold is an inverse length.
-  if (!set_keys.count("stages.align.registration.crease_curvature")) {
-    options.registration.crease_curvature /= subject.factor;
-    ++scaled;
-  }
+  options.registration.crease_curvature /= subject.factor;
+  ++scaled;
+  if (adjust) adjust(options);
   const std::string header = subject_comment(subject, scaled);
   if (args.tree) {
     run_tree_job(in, out, args, options);

@@ -18,6 +18,7 @@
 // Reads <input>/<take>/<frame>.ply (reconstruct/, or oracle/reconstruct/ in oracle mode) and
 // writes <output>/template.ply, <output>/<take>/<frame>.ply (template topology), tree.json,
 // report.json, options.yaml, and with the baseline sequential/<take>/<frame>.ply.
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -29,75 +30,70 @@
 
 namespace fourd::align {
 
+// The options are the members visit() lists, with their help; the others are tuned values,
+// not options (docs/align.md, "Advanced").
 struct AlignOptions {
-  int template_vertices = 3000;   // template vertex count (the paper's 3,000)
+  int template_vertices = 3000;   // the paper's 3,000
   int remesh_iterations = 10;     // isotropic remeshing passes for the template
-  double handle_voxel = 0.005;    // voxel of the template's handle removal [m] (0: none)
-  int handle_radius = 1;          // ... its largest closing / opening radius [voxels]
-  std::string root;               // "<take>/<frame>" to force the root; empty: most central
-  double root_tolerance = 0.02;   // frames this near the most central one: the one with the
-                                  // fewest handles is the root
-  double max_surface_rms = 0.02;  // a fit with a larger vertex-to-surface rms failed [m]
-  double max_uncovered_fraction = 0.05;  // ... or leaving more of the frame uncovered
+  double handle_voxel = 0.005;
+  int handle_radius = 1;          // largest closing / opening radius of the handle removal
+                                  // [voxels], tried from 1 up: the larger, the thicker the
+                                  // handles it removes
+  std::string root;
+  double root_tolerance = 0.02;   // of the frames whose summed shape distance to all frames is
+                                  // within this fraction of the least, the one whose surface has
+                                  // the fewest handles is the root (an arm merged into the body
+                                  // makes a poorer template)
+  double max_surface_rms = 0.02;
+  double max_uncovered_fraction = 0.05;  // a fit leaving more of the frame uncovered failed
   double far_edge_factor = 4.0;   // tree edges longer than this x the median are flagged
-  int reparent_attempts = 3;      // other parents tried for a frame whose registration failed
+  int reparent_attempts = 3;
   // Register frames the self-diagnosis finds wrong on their surface again (align.md, item 6).
   // Off: on the default sample it changed 3 of 95 verdicts and no metric, and on the tiny
   // sample it left walk_fast a cycle that does not close. Not a user option until it helps.
   bool retry_diagnosed = false;
-  double outlier_rms_factor = 2;   // a passed fit with more than this x the median rms is
-                                     // registered again from other parents (0: never)
+  double outlier_rms_factor = 2;
   bool exclude_non_manifold = true;  // non-manifold frames are excluded (else flagged only)
-  bool keep_failed_fits = true;      // a frame whose every fit failed keeps its best, flagged
-                                     // (else it is excluded and the take has a gap)
-  double max_volume_ratio = 1.35;    // larger ratio of two takes' median volumes: refused as
-                                     // different characters
-  bool sequential_baseline = false;  // also run the frame-to-frame baseline (sequential/)
+  bool keep_failed_fits = true;
+  double max_volume_ratio = 1.35;
+  bool sequential_baseline = false;
   DescriptorOptions descriptor;
   RegistrationOptions registration;
 
   template <class V>
   void visit(V& v) {
-    v("template_vertices", template_vertices, "template vertex count", Range{100, 1000000});
-    v("remesh_iterations", remesh_iterations, "isotropic remeshing passes", Range{1, 100});
+    v("template_vertices", template_vertices, "template vertex count (and so the asset's)",
+      Range{100, 1000000});
     v("handle_voxel", handle_voxel,
       "voxel of the morphological clean-up that removes the root frame's small handles (tunnels, "
       "an arm merged with the body) before it becomes the template [m]; 0: none",
       Length{0, 1});
-    v("handle_radius", handle_radius,
-      "largest radius [voxels] of that clean-up's closing and opening (tried from 1 up): the "
-      "larger, the thicker the handles it removes",
-      Range{1, 10});
     v("root", root,
       "root frame as <take>/<frame>; empty: the most central frame (least summed shape distance "
       "to all frames), the template's");
-    v("root_tolerance", root_tolerance,
-      "of the frames whose summed shape distance to all frames is within this fraction of the "
-      "least, the one whose surface has the fewest handles is the root (an arm merged into the "
-      "body makes a poorer template)",
-      Range{0, 10});
-    v("max_surface_rms", max_surface_rms, "largest accepted fit rms [m]", Length{1e-06, 100});
-    v("max_uncovered_fraction", max_uncovered_fraction,
-      "largest accepted fraction of the frame left uncovered", Range{0, 1});
-    v("far_edge_factor", far_edge_factor, "flag tree edges longer than this x the median",
-      Range{1, 1e6});
-    v("reparent_attempts", reparent_attempts, "other parents tried after a failed fit",
-      Range{0, 100});
+    v("max_surface_rms", max_surface_rms,
+      "a fit with a larger vertex-to-surface rms failed [m]", Length{1e-06, 100});
+    v("reparent_attempts", reparent_attempts,
+      "other parents tried for a frame whose registration failed", Range{0, 100});
     v("outlier_rms_factor", outlier_rms_factor,
       "a fit that passed with more than this x the median rms of the aligned frames is "
       "registered again from its neighbours in time and up to reparent_attempts other similar "
-      "frames; of its fits, the least stretched of those within registration.stretch_tolerance "
-      "x the closest is kept (if below registration.stretch_margin x the closest's stretch); "
-      "0: never",
+      "frames, the least stretched of its closest fits kept; 0: never",
       Range{0, 1000});
-    v("exclude_non_manifold", exclude_non_manifold, "exclude non-manifold frames");
     v("keep_failed_fits", keep_failed_fits,
-      "keep the best fit of a frame whose registration failed, flagged (else exclude it)");
+      "a frame whose every fit failed keeps its best, flagged (else it is excluded and the take "
+      "has a gap)");
     v("max_volume_ratio", max_volume_ratio,
-      "largest ratio of two takes' median volumes of one character", Range{1, 100});
-    v("sequential_baseline", sequential_baseline, "also run the frame-to-frame baseline");
-    v("descriptor", descriptor, "shape histogram");
+      "largest ratio of two takes' median volumes of one character (above: refused as different "
+      "characters)",
+      Range{1, 100});
+    v("sequential_baseline", sequential_baseline,
+      "also run the frame-to-frame baseline (sequential/)");
     v("registration", registration, "pairwise non-rigid registration");
+  }
+  template <class V>
+  void internal_lengths(V& v) {
+    v("descriptor", descriptor, "");
   }
 };
 
@@ -119,6 +115,10 @@ struct FrameStatus {
   double seconds = 0;  // registration wall time
 };
 
-void run_align(const Session& session, const StageArgs& args);
+// Runs the stage (or the job `args` names). `adjust`, when given, changes the options after
+// they are read and scaled to the subject, before any job uses them: how a test sets tuned
+// values that session.yaml cannot.
+void run_align(const Session& session, const StageArgs& args,
+               const std::function<void(AlignOptions&)>& adjust = {});
 
 }  // namespace fourd::align

@@ -12,6 +12,8 @@
 
 namespace fourd::align {
 
+// Tuned values, not options (docs/align.md, "Advanced"); internal_lengths() lists the lengths
+// scaled to the subject.
 struct ExtremityOptions {
   double radius = 0.3;          // a tip is the farthest vertex within this geodesic radius [m]
                                 // (more than a foot's length: a heel is no tip)
@@ -22,23 +24,12 @@ struct ExtremityOptions {
   double min_tolerance = 0.08;  // ... or this [m]
   double max_match_distance = 1.5;  // matched tips farther apart are not matched [m]
   double anchor_distance = 0.1;     // a covered frame tip anchors the template tip this near [m]
-
   template <class V>
-  void visit(V& v) {
-    v("radius", radius, "a tip is the farthest vertex within this geodesic radius [m]",
-      Length{1e-05, 100});
-    v("min_fraction", min_fraction,
-      "tips are at least this fraction of the farthest vertex's geodesic distance",
-      Range{0, 1});
-    v("max_count", max_count, "most tips kept (the farthest)", Range{0, 8});
-    v("tolerance", tolerance,
-      "matched tips' geodesic distances differ by at most this fraction of the template's",
-      Range{0, 10});
-    v("min_tolerance", min_tolerance, "... or by this [m]", Length{0, 100});
-    v("max_match_distance", max_match_distance, "matched tips farther apart are not matched [m]",
-      Length{0, 1000});
-    v("anchor_distance", anchor_distance,
-      "a frame tip the fit covers anchors the template tip this near it [m]", Length{0, 100});
+  void internal_lengths(V& v) {
+    v("radius", radius, "", Length{1e-05, 100});
+    v("min_tolerance", min_tolerance, "", Length{0, 100});
+    v("max_match_distance", max_match_distance, "", Length{0, 1000});
+    v("anchor_distance", anchor_distance, "", Length{0, 100});
   }
 };
 

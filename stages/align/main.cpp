@@ -16,5 +16,8 @@ int main(int argc, char** argv) {
       /*takes_frame_range=*/true, /*supports_oracle=*/true,
       {fourd::options_section<fourd::align::AlignOptions>("align")}};
   info.tree_jobs = true;
-  return fourd::run_stage_main(argc, argv, info, nullptr, fourd::align::run_align);
+  return fourd::run_stage_main(argc, argv, info, nullptr,
+                               [](const fourd::Session& session, const fourd::StageArgs& args) {
+                                 fourd::align::run_align(session, args);
+                               });
 }

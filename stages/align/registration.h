@@ -42,8 +42,11 @@
 
 namespace fourd::align {
 
+// The options are the members visit() lists, with their help; the others are tuned values,
+// not options (docs/align.md, "Advanced"); internal_lengths() lists the tuned lengths scaled to
+// the subject.
 struct RegistrationOptions {
-  int graph_nodes = 250;      // deformation graph nodes
+  int graph_nodes = 250;
   int node_influences = 4;    // nodes blended per vertex
   int rigid_iterations = 10;  // rigid ICP iterations before the non-rigid fit
   std::vector<double> stiffness = {8, 4, 1.5, 0.5, 0.08};  // graph regulariser weight per level
@@ -64,13 +67,13 @@ struct RegistrationOptions {
                                  // first fit's both-ways rms
   double landmark_uncovered = 0.002;  // tips are looked at only when the first fit leaves more
                                       // of the frame than this uncovered
-  double limb_fraction = 0.6;    // a limb: the part geodesically nearer its tip than this x
-                                 // the tip's distance from the trunk (0: no articulated retry)
+  double limb_fraction = 0.6;
   double limb_blend = 0.05;      // a turned limb's rotation fades in over this [m]
   double limb_band = 0.04;       // a limb is followed along the frame in rings this wide [m]
   int bent_first_level = 4;      // the fit from the limbs bent along the frame starts here
   double crease_curvature = 0.5; // regulariser softened to 1 / (1 + H / this) where the
-                                 // template is concave with mean curvature H [1/m] (0: uniform)
+                                 // template is concave with mean curvature H [1/m] (0: uniform);
+                                 // an inverse length, divided by the subject's scale factor
   double crease_refine_floor = 0.25;  // ... but the vertex refinement's to no less than this
   int unfold_rings = 2;  // folds the refinement leaves get the graph's shape back, with this
                          // many rings around them (-1: not)
@@ -86,91 +89,22 @@ struct RegistrationOptions {
   template <class V>
   void visit(V& v) {
     v("graph_nodes", graph_nodes, "deformation graph nodes", Range{4, 100000});
-    v("node_influences", node_influences, "nodes blended per vertex", Range{1, 8});
-    v("rigid_iterations", rigid_iterations, "rigid ICP iterations", Range{0, 1000});
-    v("stiffness", stiffness, "graph regulariser weight per level, coarse to fine", Range{0, 1e9});
-    v("iterations_per_level", iterations_per_level, "Gauss-Newton iterations per level",
-      Range{1, 1000});
-    v("max_distance", max_distance, "largest correspondence distance, first level [m]",
-      Length{1e-06, 100});
-    v("final_max_distance", final_max_distance,
-      "largest correspondence distance, last level and refinement [m]", Length{1e-06, 100});
-    v("normal_angle", normal_angle, "largest angle between matched normals [deg]",
-      Range{0, 180});
-    v("robust_scale", robust_scale, "Cauchy scale of the residuals [m]", Length{1e-07, 100});
-    v("point_to_point", point_to_point, "point-to-point weight relative to point-to-plane",
-      Range{0, 100});
-    v("reverse_weight", reverse_weight,
-      "weight of frame-to-template matches relative to template-to-frame ones (0: none)",
-      Range{0, 100});
-    v("refine_iterations", refine_iterations, "vertex-level refinement iterations",
-      Range{0, 1000});
-    v("refine_weight", refine_weight, "refinement data weight relative to its stiffness",
-      Range{1e-6, 1e6});
-    v("coverage_distance", coverage_distance,
-      "a frame point farther than this from the fit counts as uncovered [m]", Length{1e-06, 100});
-    v("landmark_weight", landmark_weight,
-      "weight of one matched tip (head, hand, foot) as a number of vertices' data terms "
-      "(0: no landmarks)",
-      Range{0, 1e6});
-    v("landmark_levels", landmark_levels, "levels (coarse first) that use the matched tips",
-      Range{0, 100});
-    v("landmark_gain", landmark_gain,
-      "a retry with the tips as landmarks is kept only when its both-ways rms is below this x "
-      "the first fit's",
-      Range{0, 1});
-    v("landmark_uncovered", landmark_uncovered,
-      "the tips are looked at only when the first fit leaves more than this fraction of the "
-      "frame uncovered (a fit that covers the whole frame missed no limb)",
-      Range{0, 1});
     v("limb_fraction", limb_fraction,
       "when a fit leaves part of the frame uncovered, the limbs (the template's surface "
       "geodesically nearer a tip than this x the tip's distance from the trunk) are turned about "
-      "their joints towards the frame's tips and the frame registered again (0: no such retry)",
+      "their joints towards the frame's tips and the frame registered again (0: no such retry; "
+      "faster on coarse frames)",
       Range{0, 1});
-    v("limb_blend", limb_blend, "a turned limb's rotation fades in over this geodesic distance [m]",
-      Length{0, 100});
-    v("limb_band", limb_band,
-      "a limb is also followed along the frame's surface in rings of equal geodesic distance from "
-      "its tip, this wide [m]: the rings' centres give the limb's bends",
-      Length{1e-05, 10});
-    v("bent_first_level", bent_first_level,
-      "the fit from the limbs bent along the frame begins at this level (0: the first): the "
-      "coarse levels' stiff regulariser would straighten the bends",
-      Range{0, 100});
-    v("crease_curvature", crease_curvature,
-      "where the template is concave (armpits, crotch: where parts meet and skin stretches as "
-      "a joint opens), the regulariser is softened to 1 / (1 + H / this) of its weight, H the "
-      "mean curvature [1/m] (0: the same everywhere)",
-      Range{0, 1e6});
-    v("crease_refine_floor", crease_refine_floor,
-      "the vertex refinement's regulariser is softened in the creases to no less than this "
-      "(1: not at all); softer, a reconstruction's sharp dimples fold over",
-      Range{0, 1});
-    v("unfold_rings", unfold_rings,
-      "where the vertex refinement folds the surface over (a triangle against its rest normal "
-      "carried by the local rotations), the folded triangles and this many rings around them "
-      "take the deformation graph's shape back, joined smoothly to the refinement around them; "
-      "-1: folds are left",
-      Range{-1, 100});
-    v("unconfident_weight", unconfident_weight,
-      "weight of frame surface of confidence 0 relative to confidence 1, in between linearly "
-      "(frames that carry a confidence, as reconstruct's do: low where only the visual hull put "
-      "the surface, which fills concavities no camera sees into); 1: confidence ignored",
-      Range{0, 1});
-    v("unconfident_stiffness", unconfident_stiffness,
-      "the regulariser's factor where the template's own surface had confidence 0 (membranes "
-      "the visual hull left in its root frame's concavities: a wrong rest shape to keep), in "
-      "between linearly; 1: the same everywhere",
-      Range{0, 1});
-    v("stretch_tolerance", stretch_tolerance,
-      "of the retries that fit within this x the closest one's both-ways rms, the least "
-      "stretched is kept ...",
-      Range{1, 100});
-    v("stretch_margin", stretch_margin,
-      "... when its stretch is below this x the closest one's (a near tie keeps the closer fit)",
-      Range{0, 1});
-    v("extremities", extremities, "tips of the body (geodesic extremities) used as landmarks");
+  }
+  template <class V>
+  void internal_lengths(V& v) {
+    v("max_distance", max_distance, "", Length{1e-06, 100});
+    v("final_max_distance", final_max_distance, "", Length{1e-06, 100});
+    v("robust_scale", robust_scale, "", Length{1e-07, 100});
+    v("coverage_distance", coverage_distance, "", Length{1e-06, 100});
+    v("limb_blend", limb_blend, "", Length{0, 100});
+    v("limb_band", limb_band, "", Length{1e-05, 10});
+    v("extremities", extremities, "");
   }
   void check() const;
 };

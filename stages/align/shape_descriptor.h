@@ -14,22 +14,19 @@
 
 namespace fourd::align {
 
+// Tuned values, not options (docs/align.md, "Advanced"); internal_lengths() lists the lengths
+// scaled to the subject.
 struct DescriptorOptions {
   double voxel = 0.02;   // voxel edge of the solid's occupancy grid [m]
   double radius = 1.2;   // outer radius of the last shell [m]; farther voxels count in it
   int shells = 12;       // radial shells
   int elevations = 8;    // elevation bands, equal in solid angle
   int sectors = 16;      // azimuth sectors about the up axis
-  int up_axis = 2;       // 0 = x, 1 = y, 2 = z
-
+  int up_axis = 2;       // 0 = x, 1 = y, 2 = z (every session is z-up)
   template <class V>
-  void visit(V& v) {
-    v("voxel", voxel, "voxel edge of the occupancy grid [m]", Length{2e-05, 2});
-    v("radius", radius, "outer radius of the histogram [m]", Length{0.0005, 1000});
-    v("shells", shells, "radial shells", Range{1, 100});
-    v("elevations", elevations, "elevation bands", Range{1, 64});
-    v("sectors", sectors, "azimuth sectors about the up axis", Range{1, 360});
-    v("up_axis", up_axis, "vertical axis: 0 = x, 1 = y, 2 = z", Range{0, 2});
+  void internal_lengths(V& v) {
+    v("voxel", voxel, "", Length{2e-05, 2});
+    v("radius", radius, "", Length{0.0005, 1000});
   }
 };
 

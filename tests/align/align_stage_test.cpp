@@ -32,7 +32,7 @@ class AlignSession {
     std::string pattern = (fs::temp_directory_path() / "fourd_align_session_XXXXXX").string();
     if (::mkdtemp(pattern.data()) == nullptr) throw std::runtime_error("mkdtemp failed");
     root_ = pattern;
-    write_config("");
+    write_config();
     const test::Figure figure = test::make_figure(0.02);
     const std::map<std::string, std::vector<double>> takes = {
         {"walk_a", {0.0, 0.5, 1.0, 1.5, 2.0}}, {"walk_b", {3.0, 3.6, 4.2, 4.8}}};
@@ -52,19 +52,32 @@ class AlignSession {
   AlignSession(const AlignSession&) = delete;
   AlignSession& operator=(const AlignSession&) = delete;
 
-  // `align_extra`: more lines of stages.align (each "    key: value\n").
-  void write_config(const std::string& registration_extra, const std::string& align_extra = "",
-                    double max_surface_rms = 0.1) {
+  // `align_extra`: more lines of stages.align (each "    key: value\n"); `registration`: its
+  // registration section.
+  void write_config(const std::string& align_extra = "", double max_surface_rms = 0.1,
+                    const std::string& registration = "{graph_nodes: 60, limb_fraction: 0}") {
     std::ofstream out(root_ / "session.yaml", std::ios::trunc);
     out << "name: align_test\nfps: 12\nmotions:\n"
            "  - {name: walk, takes: [walk_a, walk_b], parameter: speed, cyclic: true}\n"
-           "stages:\n  align:\n    template_vertices: 600\n    remesh_iterations: 3\n"
+           "stages:\n  align:\n    template_vertices: 600\n"
            // A coarse template of a coarse figure: by default accept its fits.
            "    max_surface_rms: "
-        << max_surface_rms << "\n    max_uncovered_fraction: 0.5\n"
-        << align_extra
-        << "    registration: {graph_nodes: 60, iterations_per_level: 3, refine_iterations: 2, limb_fraction: 0"
-        << registration_extra << "}\n";
+        << max_surface_rms << "\n"
+        << align_extra << "    registration: " << registration << "\n";
+  }
+
+  // Tuned values that are not options, set after the stage has read its options and scaled
+  // them to the subject.
+  std::function<void(AlignOptions&)> adjust = [](AlignOptions& o) {
+    quick(o);
+    o.registration.iterations_per_level = 3;
+    o.registration.refine_iterations = 2;
+  };
+  // A coarse template, and a coarse figure's fits accepted however much of it they leave
+  // uncovered.
+  static void quick(AlignOptions& o) {
+    o.remesh_iterations = 3;
+    o.max_uncovered_fraction = 0.5;
   }
 
   const fs::path& root() const { return root_; }
@@ -75,7 +88,7 @@ class AlignSession {
 
   void run(StageArgs args) const {
     args.session_dir = root_.string();
-    run_align(Session::open(root_), args);
+    run_align(Session::open(root_), args, adjust);
   }
 
  private:
@@ -173,14 +186,14 @@ TEST(AlignStage, JobsRefuseAMissingOrStalePlan) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("branch1.bin"), std::string::npos) << e.what();
   }
-  s.write_config(", stiffness: [2, 0.5]");  // options changed after the tree job
+  s.write_config("    reparent_attempts: 2\n");  // options changed after the tree job
   try {
     s.run(branch_job(1));
     FAIL() << "expected an InputError";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("--tree"), std::string::npos) << e.what();
   }
-  s.write_config("");
+  s.write_config();
   s.run(tree_job(2));  // a new plan: branch results of the old one must not be merged
   s.run(branch_job(0));
   s.run(branch_job(1));
@@ -221,18 +234,25 @@ bool has_flag(const std::vector<std::string>& flags, const std::string& flag) {
 // and more stretched than without the refits, and a frame that was not refitted keeps its mesh
 // byte for byte.
 TEST(AlignStage, OutlierFitsAreRegisteredAgainAndNeverEndWorse) {
-  // The creases softened less than by default: there some outlier on this small session finds a
-  // better parent, so the refits are exercised.
-  const std::string registration = "    registration: {crease_curvature: 1}\n";
+  // The registration's defaults, with the creases softened less than by default: there some
+  // outlier on this small session finds a better parent, so the refits are exercised.
+  const std::string registration = "{}";
+  const auto adjust = [](AlignOptions& o) {
+    AlignSession::quick(o);
+    o.registration.crease_curvature = 1;
+  };
   AlignSession plain;
-  plain.write_config("", "    outlier_rms_factor: 0\n" + registration);
+  plain.adjust = adjust;
+  plain.write_config("    outlier_rms_factor: 0\n", 0.1, registration);
   plain.run(StageArgs{});
   AlignSession refit;
+  refit.adjust = adjust;
   // Just above the median: about half the frames count as outliers here.
   const double factor = 1.05;
   // One similar frame besides the neighbours in time: the test stays quick under the sanitizers.
-  refit.write_config("", fmt::format("    outlier_rms_factor: {}\n    reparent_attempts: 1\n", factor) +
-                             registration);
+  refit.write_config(
+      fmt::format("    outlier_rms_factor: {}\n    reparent_attempts: 1\n", factor), 0.1,
+      registration);
   refit.run(StageArgs{});
 
   const auto before = frame_fits(plain.out());
@@ -331,8 +351,7 @@ TEST(AlignStage, FailedFitsAreReparentedOrKeptFlagged) {
     // About the median fit rms of these frames: some fits fail, some pass. Excluding, no other
     // parent is tried (the exclusion is what is looked at; quicker under the sanitizers).
     const double limit_mm = 2.1;
-    s.write_config("",
-                   fmt::format("    outlier_rms_factor: 0\n    keep_failed_fits: {}\n"
+    s.write_config(fmt::format("    outlier_rms_factor: 0\n    keep_failed_fits: {}\n"
                                "    reparent_attempts: {}\n",
                                keep, keep ? 3 : 0),
                    limit_mm / 1e3);
