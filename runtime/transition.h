@@ -32,21 +32,20 @@ namespace fourd {
 inline constexpr int kMaxTrellisDepth = 32;
 inline constexpr int kMaxTrellisColumns = 101;  // free-phase target columns (alpha >= 0.01)
 
+// The options are the members visit() lists, with their help; the others are tuned values,
+// not options (docs/graph.md, "Advanced").
 struct TransitionOptions {
   double alpha = 0.1;   // trellis step as a fraction of the time and parameter ranges
-  double lambda = 5.0;  // weight of latency E_L [cost per frame]
-  int depth = 12;       // l_max: trellis levels on each side
-  double cost_unit = 1e4;  // E_S = cost_unit x distance [m^2]: 1e4 gives cm^2
+  double lambda = 5.0;
+  int depth = 12;
+  double cost_unit = 1e4;  // E_S = cost_unit x distance [m^2]: 1e4 gives cm^2 (the graph stage
+                           // divides it by the square of the subject's scale factor)
   double one_shot_target_t = 0.3;  // target time of a one-shot space when the request has none
 
   template <class V>
   void visit(V& v) {
-    v("alpha", alpha, "trellis step, fraction of the time and parameter ranges", Range{0.01, 1});
-    v("lambda", lambda, "weight of latency (cost per frame)", Range{0, 1e6});
-    v("depth", depth, "trellis depth l_max", Range{0, kMaxTrellisDepth});
-    v("cost_unit", cost_unit, "E_S units per m^2 of frame distance", Range{1e-9, 1e12});
-    v("one_shot_target_t", one_shot_target_t,
-      "target time in a one-shot space when a request gives none", Range{0, 1});
+    v("lambda", lambda, "weight of latency E_L (cost per frame)", Range{0, 1e6});
+    v("depth", depth, "trellis depth l_max: levels on each side", Range{0, kMaxTrellisDepth});
   }
   // Throws ConfigError naming the field.
   void check() const;

@@ -181,8 +181,7 @@ nlohmann::json graph_summary(const MotionGraph& graph, const GraphBuildReport& r
 
 void run_graph(const Session& session, const StageArgs& args) {
   GraphOptions options;
-  SetKeys set_keys;
-  session.stage_options("graph", options, &set_keys);
+  session.stage_options("graph", options);
   options.check();
   const SessionConfig& config = session.config();
   const fs::path in_dir = motion_space_dir(session, args);
@@ -207,9 +206,8 @@ void run_graph(const Session& session, const StageArgs& args) {
     s.source = "the motion spaces' character height";
     return s;
   });
-  const bool scale_cost = !set_keys.count("stages.graph.transitions.cost_unit");
-  if (scale_cost) options.transitions.cost_unit /= subject.factor * subject.factor;
-  log_subject("graph", subject, scale_cost ? 1 : 0);
+  options.transitions.cost_unit /= subject.factor * subject.factor;
+  log_subject("graph", subject, 1);
   log::Timer timer;
   GraphBuildReport report;
   Asset asset;

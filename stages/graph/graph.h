@@ -34,9 +34,12 @@ namespace fourd::graph {
 
 inline constexpr const char* kAssetFileName = "motion_graph.fourd";
 
+// The options are the members visit() lists, with their help; the others are tuned values,
+// not options (docs/graph.md, "Advanced").
 struct GraphOptions {
-  double velocity_weight = 5.0;  // weight of the velocity term of the frame distance
-  bool self_loops = true;        // add a loop edge to every cyclic space
+  double velocity_weight = 5.0;  // weight of |V_a - V_b|^2 (the velocity term) in the frame
+                                 // distance
+  bool self_loops = true;
   PrecomputeOptions precomputed;
   TransitionOptions transitions;  // defaults stored in the asset for the runtime
   Table2Options table2;           // the paper's Table 2 on this graph (graph/table2.json)
@@ -44,11 +47,9 @@ struct GraphOptions {
 
   template <class V>
   void visit(V& v) {
-    v("velocity_weight", velocity_weight, "weight of |V_a - V_b|^2 in the frame distance",
-      Range{0, 1e6});
     v("self_loops", self_loops, "add a loop edge to every cyclic motion space");
     v("precomputed", precomputed, "baseline: n best transitions per edge");
-    v("transitions", transitions, "online transition search defaults");
+    v("transitions", transitions, "online transition search defaults, stored in the asset");
     v("table2", table2, "Table 2: random transitions, online vs precomputed");
     v("textures", textures, "key textures of the asset (from texture/, when present)");
   }

@@ -15,9 +15,11 @@
 
 namespace fourd::graph {
 
+// The options are the members visit() lists, with their help; the others are tuned values,
+// not options (docs/graph.md, "Advanced").
 struct KeyTextureOptions {
-  int keys = 8;           // key phases per input take (0: no textures in the asset)
-  int size = 512;         // texels per side of the stored textures (0: as baked)
+  int keys = 8;
+  int size = 512;
   int jpeg_quality = 90;  // JPEG quality of the stored textures
 
   template <class V>
@@ -26,7 +28,6 @@ struct KeyTextureOptions {
       Range{0, 256});
     v("size", size, "texels per side of the textures in the asset (0: as baked)",
       Range{0, 16384});
-    v("jpeg_quality", jpeg_quality, "JPEG quality of the textures in the asset", Range{1, 100});
   }
 };
 

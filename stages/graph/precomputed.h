@@ -13,18 +13,16 @@
 
 namespace fourd::graph {
 
+// The options are the members visit() lists, with their help; the others are tuned values,
+// not options (docs/graph.md, "Advanced").
 struct PrecomputeOptions {
-  int count = 10;              // transitions kept per edge
+  int count = 10;
   int parameter_samples = 11;  // parameter values per space (evenly over its range)
   double separation = 0.05;    // least distance in source time between kept transitions
 
   template <class V>
   void visit(V& v) {
     v("count", count, "precomputed transitions kept per edge", Range{0, 1000});
-    v("parameter_samples", parameter_samples, "parameter values sampled per space",
-      Range{1, 1000});
-    v("separation", separation, "least source-time distance between kept transitions",
-      Range{0, 1});
   }
 };
 

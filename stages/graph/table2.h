@@ -22,9 +22,11 @@
 
 namespace fourd::graph {
 
+// The options are the members visit() lists, with their help; the others are tuned values,
+// not options (docs/graph.md, "Advanced").
 struct Table2Options {
-  int transitions = 50;  // random requests (0: no Table 2)
-  std::vector<std::string> spaces;  // edges between these spaces only (empty: every edge)
+  int transitions = 50;
+  std::vector<std::string> spaces;
   std::vector<int> depths = {3, 5, 8, 10, 12, 16};  // online trellis depths evaluated
   std::vector<int> precomputed = {1, 5, 10};        // n of the baseline
   std::uint64_t seed = 2012;                        // of the random requests
@@ -35,10 +37,6 @@ struct Table2Options {
     v("transitions", transitions, "random transition requests (0: skip Table 2)",
       Range{0, 100000});
     v("spaces", spaces, "evaluate edges between these motion spaces (empty: all edges)");
-    v("depths", depths, "online trellis depths evaluated", Range{0, kMaxTrellisDepth});
-    v("precomputed", precomputed, "n of the precomputed baseline", Range{1, 100000});
-    v("seed", seed, "seed of the random requests");
-    v("timing_repeats", timing_repeats, "searches per request timed", Range{1, 100000});
   }
 };
 

@@ -19,20 +19,18 @@
 
 namespace fourd::texture {
 
+// The options are the members visit() lists, with their help; the others are tuned values,
+// not options (docs/texture.md, "Advanced").
 struct AtlasOptions {
-  int resolution = 1024;         // texels per side of the (square) texture
+  int resolution = 1024;
   int gutter = 4;                // empty texels between two charts (at least 2)
   double max_chart_angle = 55;   // largest angle between a face normal and its chart's [deg]
   double max_stretch = 1.15;     // largest L2 stretch of a chart (1 = no distortion)
-  std::string method = "lscm";   // chart flattening: lscm | arap
+  std::string method = "lscm";
 
   template <class V>
   void visit(V& v) {
-    v("resolution", resolution, "texels per side of the texture", Range{16, 16384});
-    v("gutter", gutter, "empty texels between charts", Range{2, 64});
-    v("max_chart_angle", max_chart_angle,
-      "largest angle between a face normal and its chart's mean normal [deg]", Range{5, 89});
-    v("max_stretch", max_stretch, "largest L2 stretch of a chart (1: none)", Range{1.0, 10});
+    v("resolution", resolution, "texels per side of the (square) texture", Range{16, 16384});
     v("method", method, "chart flattening: lscm (conformal) or arap (as rigid as possible)");
   }
   void check() const;

@@ -18,6 +18,8 @@
 
 namespace fourd::texture {
 
+// Tuned values, not options (docs/texture.md, "Advanced"); internal_lengths() lists the lengths
+// scaled to the subject.
 struct BakeOptions {
   double angle_power = 4;          // view weight ~ cos(viewing angle)^angle_power
   double min_cos = 0.2;            // views more grazing than acos(min_cos) are not used
@@ -27,16 +29,8 @@ struct BakeOptions {
   int seam_width = 6;              // seam corrections fade over about this many texels; 0: off
 
   template <class V>
-  void visit(V& v) {
-    v("angle_power", angle_power, "view weight ~ cos(viewing angle)^angle_power", Range{0, 64});
-    v("min_cos", min_cos, "smallest cosine of the viewing angle a camera is used at",
-      Range{0, 0.99});
-    v("edge_pixels", edge_pixels, "weight ramp inside the mesh's outline in an image [px]",
-      Range{0, 100});
-    v("occlusion_offset", occlusion_offset, "start of visibility rays above the surface [m]",
-      Length{0, 1});
-    v("seam_width", seam_width, "texels over which seam corrections fade (0: no levelling)",
-      Range{0, 256});
+  void internal_lengths(V& v) {
+    v("occlusion_offset", occlusion_offset, "", Length{0, 1});
   }
 };
 

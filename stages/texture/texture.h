@@ -22,17 +22,23 @@
 
 namespace fourd::texture {
 
+// The options are the members visit() lists, with their help; the others are tuned values,
+// not options (docs/texture.md, "Advanced"); internal_lengths() lists the tuned lengths scaled
+// to the subject.
 struct TextureOptions {
   AtlasOptions atlas;
   BakeOptions bake;
-  std::string format = "png";  // png (8 bits) | exr (half float)
+  std::string format = "png";
 
-  // One flat section: stages.texture.{resolution, gutter, ..., angle_power, ..., format}.
+  // One flat section: stages.texture.{resolution, method, format}.
   template <class V>
   void visit(V& v) {
     atlas.visit(v);
-    bake.visit(v);
     v("format", format, "texture file format: png (8 bits) or exr (half float)");
+  }
+  template <class V>
+  void internal_lengths(V& v) {
+    bake.internal_lengths(v);
   }
   void check() const;
 };

@@ -24,33 +24,28 @@
 
 namespace fourd::timewarp {
 
+// The options are the members visit() lists, with their help; the others are tuned values,
+// not options (docs/timewarp.md, "Advanced").
 struct TimewarpOptions {
-  int samples = 0;                 // samples per class; 0: one per frame of the longest take
-  int min_cycle_frames = 4;        // shortest cycle considered [frames]
-  double max_closure_ratio = 0.3;  // closure RMS / pose variation of a cycle, at most
+  int samples = 0;
+  int min_cycle_frames = 4;
+  double max_closure_ratio = 0.3;
   int oversample = 4;              // DTW phase samples per frame
   double velocity_weight = 0.01;   // weight of the phase velocity in the DTW distance [cycle^2]
   double slope_penalty = 0.1;      // extra cost of non-diagonal DTW steps
   int smoothing = 2;               // smoothing passes over the DTW path
-  bool center_poses = true;        // DTW on deviations from each take's mean pose
-  int root_smoothing = 8;          // [1 2 1] passes over each take's root curve (sigma 2 frames)
-
+  bool center_poses = true;        // DTW on deviations from each take's mean pose (not on the
+                                   // poses themselves)
+  int root_smoothing = 8;          // [1 2 1] passes over each take's root curve (sigma 2 frames):
+                                   // damps frame-to-frame alignment jitter
   template <class V>
   void visit(V& v) {
-    v("samples", samples, "samples per class (0: automatic)", Range{0, 100000});
-    v("min_cycle_frames", min_cycle_frames, "shortest cycle [frames]", Range{2, 100000});
-    v("max_closure_ratio", max_closure_ratio, "closure RMS / pose variation of a cycle, at most",
-      Range{0, 10});
-    v("oversample", oversample, "DTW phase samples per frame", Range{1, 64});
-    v("velocity_weight", velocity_weight, "phase-velocity weight in the DTW distance",
-      Range{0, 1e6});
-    v("slope_penalty", slope_penalty, "extra cost of non-diagonal DTW steps", Range{0, 100});
-    v("smoothing", smoothing, "smoothing passes over the DTW path", Range{0, 100});
-    v("center_poses", center_poses,
-      "time-warp on each take's deviations from its mean pose (not on the poses themselves)");
-    v("root_smoothing", root_smoothing,
-      "[1 2 1] passes over each take's root curve (damps frame-to-frame alignment jitter)",
-      Range{0, 1000});
+    v("samples", samples, "samples per class (0: one per frame of the longest take)",
+      Range{0, 100000});
+    v("min_cycle_frames", min_cycle_frames, "shortest cycle considered [frames]",
+      Range{2, 100000});
+    v("max_closure_ratio", max_closure_ratio,
+      "a cycle's closure RMS over its pose variation, at most", Range{0, 10});
   }
   CycleOptions cycle() const { return {min_cycle_frames, max_closure_ratio}; }
   WarpOptions warp() const {

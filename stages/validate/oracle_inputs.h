@@ -19,18 +19,16 @@
 
 namespace fourd::validate {
 
+// The options are the members visit() lists, with their help; the others are tuned values,
+// not options (docs/validate.md, "Advanced").
 struct OracleOptions {
   double remesh_voxel = 0.008;  // grid spacing of the fresh re-meshing [m]
-  double noise_sigma = 0.0;     // Gaussian noise along the normals of re-meshed surfaces [m]
+  double noise_sigma = 0.0;
   int seed = 1;                 // random grid offsets and noise
-
   template <class V>
   void visit(V& v) {
-    v("remesh_voxel", remesh_voxel, "grid spacing of the fresh re-meshing [m]",
-      Range{1e-4, 1.0});
     v("noise_sigma", noise_sigma, "Gaussian noise along the normals of re-meshed surfaces [m]",
       Range{0, 0.1});
-    v("seed", seed, "seed of the grid offsets and noise", Range{0, 1e9});
   }
 };
 

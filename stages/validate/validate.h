@@ -30,19 +30,19 @@
 
 namespace fourd::validate {
 
+// The options are the members visit() lists, with their help; the others are tuned values,
+// not options (docs/validate.md, "Advanced").
 struct ValidateOptions {
-  int frames_per_take = 5;  // frames sampled evenly per take for per-frame checks
-  int picture_takes = 4;    // takes pictured in the report (the first ones, by name)
+  int frames_per_take = 5;
+  int picture_takes = 4;
   int picture_cameras = 2;  // cameras per picture, spread evenly around the rig
   int panel_width = 480;    // largest width of one image panel in the pictures [px]
-
   template <class V>
   void visit(V& v) {
-    v("frames_per_take", frames_per_take, "frames sampled per take for per-frame checks",
-      Range{1, 100000});
-    v("picture_takes", picture_takes, "takes pictured in the report", Range{0, 1000});
-    v("picture_cameras", picture_cameras, "cameras per picture", Range{1, 16});
-    v("panel_width", panel_width, "width of one image panel [px]", Range{64, 4096});
+    v("frames_per_take", frames_per_take,
+      "frames sampled evenly per take for the per-frame checks", Range{1, 100000});
+    v("picture_takes", picture_takes, "takes pictured in the report (the first ones, by name)",
+      Range{0, 1000});
   }
 };
 
