@@ -718,6 +718,7 @@ std::string default_options_yaml(const std::vector<StageSpec>& built) {
       "# Every stage's section of session.yaml with its defaults, as `fourd defaults` prints\n"
       "# them. Copy the sections you want to change into a session's stages:, or keep a set of\n"
       "# changes as a preset (config/presets/) and list it under presets: in session.yaml.\n"
+      "# The tuned values behind these options are not options: docs/<stage>.md, \"Advanced\".\n"
       "{}\n",
       out.c_str());
 }
