@@ -5,7 +5,7 @@
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 #include <cstdint>
-#include <optional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -59,12 +59,17 @@ struct SkinnedMesh {
 // Linear blend skinning: the rest mesh posed by world_from_joint. Keeps topology and UVs.
 Mesh skin_mesh(const SkinnedMesh& skinned, const std::vector<Eigen::Isometry3d>& world_from_joint);
 
+struct Garment;  // garment.h
+
 struct Character {
   std::string name;
   Skeleton skeleton;
   SkinnedMesh skin;
   cv::Mat texture;  // CV_8UC3 (BGR, OpenCV order), the clothing/skin albedo addressed by UVs
   double height = 0;  // rest-pose height, metres
+  // A loose garment over the skin (a skirt), moved by cloth simulation rather than skinning
+  // (garment.h: PerformerSurface poses both); null when the character wears none.
+  std::shared_ptr<const Garment> garment;
 };
 
 // The procedural performer. Shape from the options; clothing colours and patterns from the
@@ -86,6 +91,14 @@ struct CharacterOptions {
   double skin_blend = 1.2;
   double trunk_skin_blend = 3;
   int skin_smoothing = 4;
+  // A loose garment over the body: "none", or "skirt", a flared skirt sewn to the waist whose
+  // cloth is simulated from the body's motion (garment.h). The skirt's length runs from the
+  // waist to the hem along the cloth, as a fraction of the waist's height above the floor
+  // (0.45: the hem a little above the knee); its flare is the half-angle of the cone it is cut
+  // as, how far out it can swing (90 would be a circle skirt).
+  std::string garment = "none";
+  double skirt_length = 0.45;
+  double skirt_flare = 40;
 
   template <class V>
   void visit(V& v) {
@@ -106,13 +119,26 @@ struct CharacterOptions {
       Range{0.1, 20});
     v("skin_smoothing", skin_smoothing,
       "skinning: rounds of averaging the weights over each vertex's neighbours", Range{0, 200});
+    v("garment", garment,
+      "none | skirt: a loose garment over the body, its cloth simulated from the body's motion");
+    v("skirt_length", skirt_length,
+      "skirt: waist to hem along the cloth, as a fraction of the waist's height above the floor",
+      Range{0.2, 0.9});
+    v("skirt_flare", skirt_flare,
+      "skirt: half-angle of the cone it is cut as [deg], how far out it can swing", Range{5, 85});
   }
+  void check() const;  // a known garment
+
+  // The keys of the garment's options: a session without a garment records none of them, so its
+  // ground_truth/synth_options.yaml stays what it was before garments existed.
+  static constexpr const char* kGarmentKeys[] = {"garment", "skirt_length", "skirt_flare"};
 };
 
 // A watertight, manifold, outward-oriented body mesh meshed from an implicit body of
 // smoothly blended ellipsoids and capsules around the bones, remeshed to near-uniform edges,
 // with smooth skinning weights, per-vertex UVs and a clothing texture (shirt, trousers, skin,
-// hair, shoes; never green, which is the backdrop's colour).
+// hair, shoes; never green, which is the backdrop's colour). With options.garment "skirt", also
+// the skirt (character.garment), hanging still on the rest pose, its colours in the texture.
 // `wardrobe_key`: the studio's key colour (studio_key_color), kept out of the clothes.
 Character make_procedural_character(const CharacterOptions& options, std::uint64_t seed,
                                     const std::optional<Eigen::Vector3d>& wardrobe_key = {});
