@@ -20,9 +20,12 @@ constexpr double kNominalHeight = 1.75;  // the performer the nominal lengths be
 constexpr double kGravity = 9.81;        // [m/s^2]
 
 // The skirt, nominal at 1.75 m (scaled with the height). The waistband sits just above the
-// trousers' belt. The shell is thicker than cloth so that the ground truth re-meshed on the
-// oracle's 8 mm grid (validate's remesh_fresh) keeps it whole: a shell thinner than the grid's
-// spacing can fall between its samples.
+// trousers' belt. The shell is thicker than cloth so that it is more than one step of the
+// oracle's 8 mm grid (validate's remesh_fresh re-meshes ground truth on it), yet that is not
+// enough to keep it whole there: re-meshed, the skirt of the rest pose has 149 handles, and 234
+// with the body (bridged across the 4 mm gap). A 20 mm shell 12 mm off the body re-meshes with
+// 9, but with the simulation's margins that large the shell crossed itself while standing and
+// the cloth stretched by up to 47 % (docs/synth.md).
 constexpr double kWaistAbovePelvis = 0.06;  // waistband height above the pelvis joint [m]
 constexpr double kThickness = 0.010;        // [m]
 constexpr double kClearance = 0.004;        // shell's inside to the body [m]
