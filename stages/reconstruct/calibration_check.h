@@ -59,14 +59,12 @@ struct CalibrationCheckOptions {
   int max_features = 8192;      // SIFT features per image
   double peak_threshold = 0.002;  // SIFT peak threshold (COLMAP's default 0.0067 finds few
                                   // features on small images)
-  std::string executable = "colmap";
   double timeout_s = 300;
   template <class V>
   void visit(V& v) {
     v("enabled", enabled, "check the calibration when the whole session is reconstructed");
     v("refine", refine,
       "refine the calibration with COLMAP's bundle adjustment (as --refine-calibration does)");
-    v("executable", executable, "colmap executable (name on PATH or path)");
     v("timeout_s", timeout_s,
       "a COLMAP command still running after this long is killed and run once more [s]",
       Range{1, 1e6});

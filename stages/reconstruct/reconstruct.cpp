@@ -574,11 +574,12 @@ void run_calibration_check(const Session& session, const Rig& rig,
     throw InputError(fmt::format("calibration check: take {} has frames 0..{}, not {}", take,
                                  it->frames - 1, frame));
   }
-  const std::string colmap = find_colmap(check.executable);
+  // The same COLMAP as the reconstruction's (one per machine).
+  const std::string colmap = find_colmap(options.colmap.executable);
   if (colmap.empty()) {
     log::warn("calibration check skipped: the COLMAP executable '{}' was not found (install "
-              "colmap, or set stages.reconstruct.calibration_check.executable)",
-              check.executable);
+              "colmap, or set stages.reconstruct.colmap.executable)",
+              options.colmap.executable);
     return;
   }
   const bool refine = check.refine || request.refine;

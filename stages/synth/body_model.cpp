@@ -61,6 +61,8 @@ double ellipsoid_distance(const Vector3d& p, const BodyPrimitive& e) {
   return k0 * (k0 - 1.0) / k1;
 }
 
+}  // namespace
+
 double primitive_distance(const BodyPrimitive& prim, const Vector3d& p) {
   if (prim.kind == BodyPrimitive::kEllipsoid) return ellipsoid_distance(p, prim);
   if (prim.scale == Vector3d::Ones()) return round_cone_distance(p, prim.a, prim.b, prim.ra, prim.rb);
@@ -69,6 +71,8 @@ double primitive_distance(const BodyPrimitive& prim, const Vector3d& p) {
   const Vector3d b = prim.a + (prim.b - prim.a).cwiseQuotient(prim.scale);
   return round_cone_distance(q, prim.a, b, prim.ra, prim.rb) * prim.scale.minCoeff();
 }
+
+namespace {
 
 BodyPrimitive ellipsoid(int joint, const Vector3d& centre, const Vector3d& radii,
                         const Eigen::Matrix3d& axes = Eigen::Matrix3d::Identity()) {
@@ -220,6 +224,25 @@ double body_field(const BodyModel& body, const Vector3d& p) {
   double sum = 0;
   for (std::size_t i = 0; i < n; ++i) sum += std::exp(-(d[i] - dmin) / k);
   return dmin - k * std::log(sum);
+}
+
+BodyModel moved_body(BodyModel body, const Vector3d& shift, double factor) {
+  for (BodyPrimitive& prim : body.primitives) {
+    prim.a = (prim.a + shift) * factor;
+    prim.b = (prim.b + shift) * factor;
+    prim.ra *= factor;
+    prim.rb *= factor;
+    prim.radii *= factor;
+  }
+  for (Vector3d& p : body.rest_positions) p = (p + shift) * factor;
+  body.blend_radius *= factor;
+  for (auto* axes : {&body.arms, &body.legs, &body.feet}) {
+    for (LimbAxis& axis : *axes) {
+      axis.start = (axis.start + shift) * factor;
+      axis.end = (axis.end + shift) * factor;
+    }
+  }
+  return body;
 }
 
 void body_bounds(const BodyModel& body, double margin, Vector3d* lo, Vector3d* hi) {

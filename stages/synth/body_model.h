@@ -48,10 +48,16 @@ struct BodyModel {
 // The body for the given height and build (no randomness: the shape depends on the options).
 BodyModel make_body_model(double height, double build);
 
-// Signed distance (approximate for ellipsoids) from p to every primitive; negative inside.
+// Signed distance (approximate for ellipsoids) from p to one primitive; negative inside.
+double primitive_distance(const BodyPrimitive& primitive, const Eigen::Vector3d& p);
+// The same for every primitive.
 void primitive_distances(const BodyModel& body, const Eigen::Vector3d& p, double* out);
 // The implicit body: smooth minimum of the primitive distances; negative inside.
 double body_field(const BodyModel& body, const Eigen::Vector3d& p);
+// The body moved by `shift`, then scaled by `factor` about the origin: its primitives, blend
+// radius, joints' rest positions and limb axes (body.skeleton is left as it was). The character's final mesh is its model's surface
+// shifted onto the floor and scaled to the exact height (make_procedural_character).
+BodyModel moved_body(BodyModel body, const Eigen::Vector3d& shift, double factor);
 // Axis-aligned bounds of the body with `margin` around it.
 void body_bounds(const BodyModel& body, double margin, Eigen::Vector3d* lo, Eigen::Vector3d* hi);
 

@@ -15,6 +15,7 @@
 #include "stages/synth/body_model.h"
 #include "stages/synth/character.h"
 #include "stages/synth/clothing.h"
+#include "stages/synth/garment.h"
 #include "stages/synth/implicit_mesh.h"
 
 namespace fourd::synth {
@@ -182,11 +183,18 @@ std::vector<detail::ChartRef> vertex_charts(const BodyModel& body, const Eigen::
 
 }  // namespace
 
+void CharacterOptions::check() const {
+  if (garment != "none" && garment != "skirt") {
+    throw ConfigError(fmt::format("garment '{}' is not one of none, skirt", garment));
+  }
+}
+
 Character make_procedural_character(const CharacterOptions& options, std::uint64_t seed,
                                     const std::optional<Eigen::Vector3d>& wardrobe_key) {
   if (!(options.height > 0.5 && options.height < 3.0)) {
     throw ConfigError(fmt::format("character.height {} m is not a human height", options.height));
   }
+  options.check();
   if (options.target_vertices < 500 || options.texture_size < 16) {
     throw ConfigError(fmt::format("character: target_vertices {} / texture_size {} too small",
                                   options.target_vertices, options.texture_size));
@@ -231,7 +239,12 @@ Character make_procedural_character(const CharacterOptions& options, std::uint64
   skin.inverse_bind.resize(rest.size());
   for (std::size_t j = 0; j < rest.size(); ++j) skin.inverse_bind[j] = rest[j].inverse();
 
-  character.texture = detail::paint_clothing(body, options.texture_size, seed, wardrobe_key);
+  std::optional<detail::SkirtChart> chart;
+  if (options.garment == "skirt") {
+    character.garment = make_skirt(character, detail::moved_body(body, Vector3d(0, 0, -min_z), factor), options);
+    chart = detail::SkirtChart{character.garment->waist_radius, character.garment->length, character.garment->flare};
+  }
+  character.texture = detail::paint_clothing(body, options.texture_size, seed, wardrobe_key, chart);
   return character;
 }
 

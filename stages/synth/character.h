@@ -5,7 +5,7 @@
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 #include <cstdint>
-#include <optional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -59,17 +59,21 @@ struct SkinnedMesh {
 // Linear blend skinning: the rest mesh posed by world_from_joint. Keeps topology and UVs.
 Mesh skin_mesh(const SkinnedMesh& skinned, const std::vector<Eigen::Isometry3d>& world_from_joint);
 
+struct Garment;  // garment.h
+
 struct Character {
   std::string name;
   Skeleton skeleton;
   SkinnedMesh skin;
   cv::Mat texture;  // CV_8UC3 (BGR, OpenCV order), the clothing/skin albedo addressed by UVs
   double height = 0;  // rest-pose height, metres
+  // A loose garment over the skin (a skirt), moved by cloth simulation rather than skinning
+  // (garment.h: PerformerSurface poses both); null when the character wears none.
+  std::shared_ptr<const Garment> garment;
 };
 
 // The procedural performer. Shape from these values; clothing colours and patterns from the
-// seed. Same values and seed give bit-identical meshes, weights and texture. Not options: the
-// synthetic studio films one performer, and stages.synth.scale sizes the whole scene.
+// seed. Same values and seed give bit-identical meshes, weights and texture.
 struct CharacterOptions {
   std::string name = "performer";
   double height = 1.75;        // standing height, floor to the top of the head [m]
@@ -87,12 +91,36 @@ struct CharacterOptions {
   double skin_blend = 1.2;
   double trunk_skin_blend = 3;
   int skin_smoothing = 4;
+  // A loose garment over the body: "none", or "skirt", a flared skirt sewn to the waist whose
+  // cloth is simulated from the body's motion (garment.h). The skirt's length runs from the
+  // waist to the hem along the cloth, as a fraction of the waist's height above the floor
+  // (0.45: the hem a little above the knee); its flare is the half-angle of the cone it is cut
+  // as, how far out it can swing (90 would be a circle skirt). Length and flare are tuned
+  // values (docs/synth.md, "Advanced").
+  std::string garment = "none";
+  double skirt_length = 0.45;
+  double skirt_flare = 40;
+
+  // The options: another body (#46's second body shape) and its clothing. The rest are tuned
+  // values of the procedural performer.
+  template <class V>
+  void visit(V& v) {
+    v("height", height, "standing height [m]", Range{1.2, 2.2});
+    v("build", build, "girth relative to an average build", Range{0.75, 1.35});
+    v("garment", garment,
+      "none | skirt: a loose garment over the body, its cloth simulated from the body's motion");
+  }
+  void check() const;  // a known garment
+
+  // The keys of the garment's options: a session without a garment records none of them.
+  static constexpr const char* kGarmentKeys[] = {"garment"};
 };
 
 // A watertight, manifold, outward-oriented body mesh meshed from an implicit body of
 // smoothly blended ellipsoids and capsules around the bones, remeshed to near-uniform edges,
 // with smooth skinning weights, per-vertex UVs and a clothing texture (shirt, trousers, skin,
-// hair, shoes; never green, which is the backdrop's colour).
+// hair, shoes; never green, which is the backdrop's colour). With options.garment "skirt", also
+// the skirt (character.garment), hanging still on the rest pose, its colours in the texture.
 // `wardrobe_key`: the studio's key colour (studio_key_color), kept out of the clothes.
 Character make_procedural_character(const CharacterOptions& options, std::uint64_t seed,
                                     const std::optional<Eigen::Vector3d>& wardrobe_key = {});

@@ -24,6 +24,12 @@ constexpr double kLegU0 = 0.51, kLegDu = 0.23;
 constexpr double kArmU0 = 0.76, kArmDu = 0.23;
 constexpr double kFootU0 = 0.01, kFootDu = 0.48, kFootV0 = 0.01, kFootDv = 0.34;
 constexpr double kFootTorsoSplitV = 0.375;  // below: feet chart, above: torso chart (u < 0.5)
+// The skirt's chart sits in the legs' column above the rows they use (hips at about v 0.57):
+// v from kSkirtV0 (hem) to kSkirtV0 + kSkirtDv (waist). With a skirt, the texels from
+// kSkirtPaintV0 up in that column carry its colours, so sampling at the chart's border never
+// reaches the legs'.
+constexpr double kSkirtU0 = kLegU0, kSkirtDu = kLegDu, kSkirtV0 = 0.64, kSkirtDv = 0.35;
+constexpr double kSkirtPaintV0 = 0.61;
 
 double top(const BodyModel& body) { return kTopNominal * body.scale; }
 double v_of_z(const BodyModel& body, double z) { return kRow0 + kRowSpan * z / top(body); }
@@ -90,6 +96,7 @@ struct Outfit {
   int shirt_style = 0;       // 0 stripes, 1 plaid, 2 print, 3 dots
   double pattern_period = 0.04;  // [m]
   std::uint64_t seed = 0;
+  Rgb skirt, skirt2;         // the skirt's cloth and its print, hem and waistband
 };
 
 // Hue [deg] and saturation (HSV) of a colour.
@@ -165,6 +172,21 @@ Outfit choose_outfit(std::uint64_t seed, const std::optional<Rgb>& key) {
   o.belt = rgb(55, 35, 25);
   o.shirt_style = static_cast<int>(pick(4));
   o.pattern_period = 0.03 + 0.01 * static_cast<double>(pick(4));
+  // The skirt, from a stream of its own (the rest of the outfit is what it was before skirts):
+  // a colour apart from the shirt and the trousers, so its waist and hem are visible edges.
+  std::uint64_t skirt_state = splitmix64(seed ^ 0x5C127ull);
+  auto skirt_pick = [&](std::size_t n) {
+    skirt_state = splitmix64(skirt_state);
+    return static_cast<std::size_t>(skirt_state % n);
+  };
+  std::size_t k = skirt_pick(shirts.size());
+  for (std::size_t tries = 0;
+       tries < shirts.size() && ((shirts[k] - o.shirt).norm() < 0.25 || (shirts[k] - o.trousers).norm() < 0.25);
+       ++tries) {
+    k = (k + 1) % shirts.size();
+  }
+  o.skirt = shirts[k];
+  o.skirt2 = shirts[(k + 1 + skirt_pick(shirts.size() - 1)) % shirts.size()];
   return o;
 }
 
@@ -278,8 +300,24 @@ Rgb paint_foot(const BodyModel& body, const Outfit& o, double t, double phi) {
   return shoe(o, su, sv);
 }
 
+// The skirt at folded angle phi and `down` the cloth (0 waist, 1 hem): a print of its second
+// colour, a waistband and a band at the hem, fine noise for stereo.
+Rgb paint_skirt(const Outfit& o, const SkirtChart& chart, double phi, double down) {
+  const double radius = chart.waist_radius + down * chart.length * std::sin(chart.flare);
+  const double su = phi * radius, sv = down * chart.length;
+  if (down < 0.05) return vary(o.skirt2 * 0.7, 0.2 * value_noise(su / 0.006, sv / 0.006, o.seed + 20));
+  if (down > 0.95) return vary(o.skirt2, 0.15 * fbm(su, sv, 0.01, o.seed + 21));
+  const Rgb c = o.skirt + (o.skirt2 - o.skirt) * smoothstep(0.1, 0.25, fbm(su, sv, 0.06, o.seed + 22));
+  return vary(c, 0.2 * fbm(su, sv, 0.02, o.seed + 23) + 0.08 * value_noise(su / 0.004, sv / 0.004, o.seed + 24));
+}
+
 // The atlas at texture coordinates (u, v).
-Rgb paint_texel(const BodyModel& body, const Outfit& o, double u, double v) {
+Rgb paint_texel(const BodyModel& body, const Outfit& o, double u, double v,
+                const std::optional<SkirtChart>& skirt) {
+  if (skirt && u >= 0.5 && u < 0.75 && v >= kSkirtPaintV0) {
+    const double phi = std::clamp((u - kSkirtU0) / kSkirtDu, 0.0, 1.0) * M_PI;
+    return paint_skirt(o, *skirt, phi, std::clamp((kSkirtV0 + kSkirtDv - v) / kSkirtDv, 0.0, 1.0));
+  }
   if (u < 0.5) {
     const double phi = std::clamp((u - kTorsoU0) / kTorsoDu, 0.0, 1.0) * M_PI;
     if (v < kFootTorsoSplitV) {
@@ -330,8 +368,13 @@ Vec2f chart_uv(const BodyModel& body, const ChartRef& ref, const Vector3d& p) {
   return Vec2f::Zero();
 }
 
+Vec2f skirt_uv(double phi, double down) {
+  return {static_cast<float>(kSkirtU0 + kSkirtDu * std::clamp(phi / M_PI, 0.0, 1.0)),
+          static_cast<float>(kSkirtV0 + kSkirtDv * (1 - std::clamp(down, 0.0, 1.0)))};
+}
+
 cv::Mat paint_clothing(const BodyModel& body, int size, std::uint64_t seed,
-                       const std::optional<Eigen::Vector3d>& key) {
+                       const std::optional<Eigen::Vector3d>& key, const std::optional<SkirtChart>& skirt) {
   const Outfit outfit = choose_outfit(seed, key);
   cv::Mat image(size, size, CV_8UC3);
   tbb::parallel_for(0, size, [&](int row) {
@@ -339,7 +382,7 @@ cv::Mat paint_clothing(const BodyModel& body, int size, std::uint64_t seed,
     const double v = 1.0 - (row + 0.5) / size;
     for (int col = 0; col < size; ++col) {
       const double u = (col + 0.5) / size;
-      const Rgb c = paint_texel(body, outfit, u, v);
+      const Rgb c = paint_texel(body, outfit, u, v, skirt);
       px[col] = cv::Vec3b(static_cast<std::uint8_t>(std::lround(255 * c.z())),
                           static_cast<std::uint8_t>(std::lround(255 * c.y())),
                           static_cast<std::uint8_t>(std::lround(255 * c.x())));

@@ -269,14 +269,7 @@ class GaitGenerator {
     // Look a little into the turn.
     const double look = std::clamp(0.3 * gait_.omega, -25 * kDeg, 25 * kDeg);
     const Matrix3d head = rot_z(heading + look) * rot_x(0.5 * turn_lean());
-    auto between = [](const Matrix3d& a, const Matrix3d& b) {
-      return Eigen::Quaterniond(a).slerp(0.5, Eigen::Quaterniond(b)).toRotationMatrix();
-    };
-    pose.rotation[static_cast<std::size_t>(rig_.pelvis)] = pelvis;
-    pose.rotation[static_cast<std::size_t>(rig_.spine)] = between(pelvis, chest);
-    pose.rotation[static_cast<std::size_t>(rig_.chest)] = chest;
-    pose.rotation[static_cast<std::size_t>(rig_.neck)] = between(chest, head);
-    pose.rotation[static_cast<std::size_t>(rig_.head)] = head;
+    set_trunk(rig_, pelvis, chest, head, pose);
     // Arms swing with the opposite leg, slightly late.
     const double swing = gait_.arm_swing * std::cos(2 * M_PI * (phi - 0.03));
     for (int side = 0; side < 2; ++side) {

@@ -46,8 +46,8 @@ void measure_jump(const Skeleton& skeleton, MotionClip& clip) {
 
 void MotionSpec::check() const {
   const bool cyclic = kind == "walk" || kind == "run" || kind == "turn";
-  if (!cyclic && kind != "jump" && kind != "reach") {
-    throw ConfigError(fmt::format("take {}: kind '{}' is not one of walk, run, turn, jump, reach", take, kind));
+  if (!cyclic && kind != "jump" && kind != "reach" && kind != "dance") {
+    throw ConfigError(fmt::format("take {}: kind '{}' is not one of walk, run, turn, jump, reach, dance", take, kind));
   }
   if (reach_target.size() != 3) {
     throw ConfigError(fmt::format("take {}: reach_target needs 3 values (x, y, z), not {}", take, reach_target.size()));
@@ -78,6 +78,7 @@ MotionClip generate_motion(const Skeleton& skeleton, const MotionSpec& spec, dou
     return clip;
   }
   if (spec.kind == "reach") return detail::generate_reach(rig, spec, fps);
+  if (spec.kind == "dance") return detail::generate_dance(rig, spec, fps);
   MotionClip clip = detail::generate_gait(rig, spec, fps);
   measure_cyclic(clip);
   return clip;
@@ -91,6 +92,29 @@ Eigen::Vector3d right_palm_position(const Skeleton& skeleton, const std::vector<
 }
 
 namespace detail {
+
+void require_frames(const MotionSpec& spec, double seconds, double fps) {
+  const int needed = static_cast<int>(std::ceil(seconds * fps)) + 1;
+  if (spec.frames < needed) {
+    throw ConfigError(fmt::format("take {}: a {} with these parameters lasts {:.2f} s and needs at least {} frames "
+                                  "at {} fps (frames = {})", spec.take, spec.kind, seconds, needed, fps, spec.frames));
+  }
+}
+
+MotionClip sample_one_shot(const Rig& rig, const MotionSpec& spec, double fps,
+                           const std::function<RootState(double)>& root,
+                           const std::function<WorldPose(double)>& pose) {
+  MotionClip clip;
+  clip.spec = spec;
+  clip.fps = fps;
+  for (int f = 0; f < spec.frames; ++f) {
+    const double t = f / fps;
+    clip.root.push_back(root(t));
+    clip.phase.push_back(static_cast<double>(f) / spec.frames);
+    clip.poses.push_back(pose(t).to_pose(rig.skeleton));
+  }
+  return clip;
+}
 
 RootState start_state(const MotionSpec& spec) {
   RootState r;

@@ -13,10 +13,12 @@ namespace fourd::synth {
 // One take of the synthetic database. Only the fields of its kind are used.
 struct MotionSpec {
   std::string take;       // take name, e.g. "walk_slow"
-  std::string kind;       // walk | run | turn | jump | reach
+  std::string kind;       // walk | run | turn | jump | reach | dance
   int frames = 30;        // number of frames to generate
   double speed = 1.2;     // walk/run/turn: ground speed [m/s]
-  double turn_rate = 0;   // turn: heading change [deg/s], + = left (counter-clockwise from above)
+  // turn: heading change [deg/s], + = left (counter-clockwise from above); dance: the spin's
+  // heading change over the whole take, per second of the take
+  double turn_rate = 0;
   double jump_length = 0;  // jump: horizontal distance take-off to landing [m]
   double jump_height = 0;  // jump: apex clearance of the pelvis above standing height [m]
   // reach: right-hand target in the body frame at frame 0 (x forward, y left, z up) [m]
@@ -28,10 +30,12 @@ struct MotionSpec {
   template <class V>
   void visit(V& v) {
     v("take", take, "take name (folder under capture/)");
-    v("kind", kind, "walk | run | turn | jump | reach");
+    v("kind", kind, "walk | run | turn | jump | reach | dance");
     v("frames", frames, "number of frames", Range{2, 100000});
     v("speed", speed, "walk/run/turn ground speed [m/s]", Range{0, 10});
-    v("turn_rate", turn_rate, "turn: heading change [deg/s], + = left", Range{-360, 360});
+    v("turn_rate", turn_rate,
+      "turn: heading change [deg/s], + = left; dance: the spin's, over the whole take",
+      Range{-360, 360});
     v("jump_length", jump_length, "jump: take-off to landing distance [m]", Range{0, 5});
     v("jump_height", jump_height, "jump: apex rise of the pelvis [m]", Range{0, 2});
     v("reach_target", reach_target, "reach: hand target in the body frame (x fwd, y left, z up) [m]");
@@ -57,7 +61,7 @@ struct MotionClip {
   std::vector<Pose> poses;          // #frames
   std::vector<RootState> root;      // #frames
   std::vector<double> phase;        // #frames, in [0,1): gait cycle phase, or normalised time
-                                    // for one-shot motions (jump, reach)
+                                    // for one-shot motions (jump, reach, dance)
   double cycle_frames = 0;          // cyclic motions: frames per gait cycle (0 otherwise)
   // Parameters measured on the generated motion itself (ground truth for validation), e.g.
   // {"speed": 1.21, "direction_deg_per_s": 0} or {"jump_length": 1.2, "jump_height": 0.3}.
@@ -68,6 +72,8 @@ struct MotionClip {
   //     jump_height [m] (highest pelvis height minus the standing pelvis height at frame 0)
   //   reach: reach_x, reach_y, reach_z [m] (right palm centre while holding at the target, in
   //     the body frame of frame 0: x forward, y left from the root, z above the floor)
+  //   dance: direction_deg_per_s (heading change first to last frame / duration), spin_deg
+  //     (the spin's heading change), spin_peak_deg_per_s (its highest rate)
   std::vector<std::pair<std::string, double>> parameters;
 };
 

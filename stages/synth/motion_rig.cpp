@@ -220,20 +220,49 @@ void solve_legs(const Rig& rig, const std::array<FootState, 2>& feet, WorldPose&
   }
 }
 
+void set_trunk(const Rig& rig, const Matrix3d& pelvis, const Matrix3d& chest, const Matrix3d& head, WorldPose& pose) {
+  auto between = [](const Matrix3d& a, const Matrix3d& b) {
+    return Eigen::Quaterniond(a).slerp(0.5, Eigen::Quaterniond(b)).toRotationMatrix();
+  };
+  pose.rotation[static_cast<std::size_t>(rig.pelvis)] = pelvis;
+  pose.rotation[static_cast<std::size_t>(rig.spine)] = between(pelvis, chest);
+  pose.rotation[static_cast<std::size_t>(rig.chest)] = chest;
+  pose.rotation[static_cast<std::size_t>(rig.neck)] = between(chest, head);
+  pose.rotation[static_cast<std::size_t>(rig.head)] = head;
+}
+
 void hang_arm(const Rig& rig, int side, double swing, double elbow, WorldPose& pose, double shrug) {
+  hold_arm(rig, side, kHangDeg * M_PI / 180, swing, elbow, pose, shrug);
+}
+
+void hold_arm(const Rig& rig, int side, double drop, double swing, double elbow, WorldPose& pose, double shrug,
+              double sweep) {
   const Skeleton& sk = rig.skeleton;
   const std::size_t i = static_cast<std::size_t>(side);
   const Vector3d& d0 = rig.arm_direction[i];
-  // Lower the arm from its rest angle to hanging, in its own vertical plane.
+  // Lower (or raise) the arm from its rest angle, in its own vertical plane.
   const double rest_drop = std::atan2(-d0.z(), std::abs(d0.y()));
-  const double lower = kHangDeg * M_PI / 180 - rest_drop;
+  const double lower = drop - rest_drop;
   const Matrix3d hang = rot_x(side == 0 ? -lower : lower);
   pose.set_local(sk, rig.clavicle[i], rot_x(side == 0 ? shrug : -shrug));
-  pose.set_local(sk, rig.upper_arm[i], rot_y(-swing) * hang);
+  const Matrix3d raised = rot_y(-swing) * hang;
+  pose.set_local(sk, rig.upper_arm[i], sweep == 0 ? raised : Matrix3d(rot_z(side == 0 ? -sweep : sweep) * raised));
   // The elbow flexes the forearm forward: about d0 x (+x) in the upper arm's frame.
   const Vector3d hinge = d0.cross(Vector3d::UnitX()).normalized();
   pose.set_local(sk, rig.forearm[i], Eigen::AngleAxisd(elbow, hinge).toRotationMatrix());
   pose.set_local(sk, rig.hand[i], Matrix3d::Identity());
+}
+
+double keyframes(const std::vector<std::pair<double, double>>& keys, double t) {
+  if (t <= keys.front().first) return keys.front().second;
+  for (std::size_t i = 1; i < keys.size(); ++i) {
+    if (t <= keys[i].first) {
+      const double span = keys[i].first - keys[i - 1].first;
+      const double s = span > 0 ? smoothstep01((t - keys[i - 1].first) / span) : 1.0;
+      return keys[i - 1].second + (keys[i].second - keys[i - 1].second) * s;
+    }
+  }
+  return keys.back().second;
 }
 
 Vector3d palm_position(const Rig& rig, int side, const WorldPose& pose) {

@@ -97,9 +97,21 @@ double max_pelvis_height(const Rig& rig, const Vector2d& pelvis_xy, const Matrix
 // world rotation and the root must be set.
 void solve_legs(const Rig& rig, const std::array<FootState, 2>& feet, WorldPose& pose);
 
+// The trunk and head from world rotations of the pelvis, chest and head: the spine halfway
+// between the pelvis and the chest, the neck halfway between the chest and the head.
+void set_trunk(const Rig& rig, const Matrix3d& pelvis, const Matrix3d& chest, const Matrix3d& head, WorldPose& pose);
+
 // Arms hanging with a forward swing (radians, + = hand forward) and elbow flexion, the
 // shoulder raised by `shrug` (radians of clavicle elevation). The chest must be set.
 void hang_arm(const Rig& rig, int side, double swing, double elbow, WorldPose& pose, double shrug = 0);
+// The same with the arm raised sideways to `drop` below horizontal (hang_arm's: 80 degrees; 0
+// holds it out level, negative raises it above the shoulder), then swept about the vertical by
+// `sweep` (radians, + = hand forward): a raised arm swings forward and back that way.
+void hold_arm(const Rig& rig, int side, double drop, double swing, double elbow, WorldPose& pose,
+              double shrug = 0, double sweep = 0);
+
+// Piecewise smooth curve through (time, value) keys, eased between neighbours (smoothstep).
+double keyframes(const std::vector<std::pair<double, double>>& keys, double t);
 
 // The palm centre of the right hand (side 1) or left hand (side 0).
 Vector3d palm_position(const Rig& rig, int side, const WorldPose& pose);

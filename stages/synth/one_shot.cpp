@@ -15,27 +15,6 @@ namespace {
 constexpr double kGravity = 9.81;
 constexpr double kNominalLeg = 0.835;
 
-// Piecewise smooth curve through (time, value) keys, eased between neighbours.
-double keyframes(const std::vector<std::pair<double, double>>& keys, double t) {
-  if (t <= keys.front().first) return keys.front().second;
-  for (std::size_t i = 1; i < keys.size(); ++i) {
-    if (t <= keys[i].first) {
-      const double span = keys[i].first - keys[i - 1].first;
-      const double s = span > 0 ? smoothstep01((t - keys[i - 1].first) / span) : 1.0;
-      return keys[i - 1].second + (keys[i].second - keys[i - 1].second) * s;
-    }
-  }
-  return keys.back().second;
-}
-
-void require_frames(const MotionSpec& spec, double seconds, double fps) {
-  const int needed = static_cast<int>(std::ceil(seconds * fps)) + 1;
-  if (spec.frames < needed) {
-    throw ConfigError(fmt::format("take {}: a {} with these parameters lasts {:.2f} s and needs at least {} frames "
-                                  "at {} fps (frames = {})", spec.take, spec.kind, seconds, needed, fps, spec.frames));
-  }
-}
-
 // ------------------------------------------------------------------------------------------
 // Jump. Coordinates of the take: x along the starting heading, y to the left, z up; the
 // pelvis moves in the x-z plane. Feet stand at x = 0 before and at x = jump_length after.
@@ -47,20 +26,15 @@ class JumpGenerator {
   }
 
   MotionClip run() const {
-    MotionClip clip;
-    clip.spec = spec_;
-    clip.fps = fps_;
-    for (int f = 0; f < spec_.frames; ++f) {
-      const double t = f / fps_;
-      const Vector2d p = pelvis(t);
-      RootState r;
-      r.heading = start_.heading;
-      r.position = to_world(p.x(), 0);
-      clip.root.push_back(r);
-      clip.phase.push_back(static_cast<double>(f) / spec_.frames);
-      clip.poses.push_back(pose(t).to_pose(rig_.skeleton));
-    }
-    return clip;
+    return sample_one_shot(
+        rig_, spec_, fps_,
+        [&](double t) {
+          RootState r;
+          r.heading = start_.heading;
+          r.position = to_world(pelvis(t).x(), 0);
+          return r;
+        },
+        [&](double t) { return pose(t); });
   }
 
  private:
@@ -268,15 +242,8 @@ class ReachGenerator {
   }
 
   MotionClip run() const {
-    MotionClip clip;
-    clip.spec = spec_;
-    clip.fps = fps_;
-    for (int f = 0; f < spec_.frames; ++f) {
-      const double t = f / fps_;
-      clip.root.push_back(start_);
-      clip.phase.push_back(static_cast<double>(f) / spec_.frames);
-      clip.poses.push_back(pose(progress(t)).to_pose(rig_.skeleton));
-    }
+    MotionClip clip = sample_one_shot(
+        rig_, spec_, fps_, [&](double) { return start_; }, [&](double t) { return pose(progress(t)); });
     // The palm, measured at the middle of the hold, in the body frame of frame 0.
     const int hold = static_cast<int>(std::lround(0.5 * (t_reached_ + t_back_) * fps_));
     const WorldPose held = pose(progress(hold / fps_));

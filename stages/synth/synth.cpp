@@ -14,6 +14,7 @@
 #include "pipeline/core/log.h"
 #include "pipeline/core/mesh_io.h"
 #include "pipeline/core/staged_folder.h"
+#include "stages/synth/garment.h"
 
 namespace fourd::synth {
 namespace {
@@ -114,12 +115,24 @@ nlohmann::json take_json(const MotionClip& clip, double s) {
   return j;
 }
 
-nlohmann::json character_json(const Character& character, double s) {
+nlohmann::json character_json(const Character& character, const Mesh& surface, double s) {
   nlohmann::json j;
   j["name"] = character.name;
   j["height"] = character.height * s;
-  j["vertices"] = character.skin.rest.num_vertices();
-  j["triangles"] = character.skin.rest.num_triangles();
+  j["vertices"] = surface.num_vertices();
+  j["triangles"] = surface.num_triangles();
+  if (character.garment) {
+    // The garment's vertices follow the skin's in every mesh.
+    const Garment& g = *character.garment;
+    j["garment"] = {{"kind", "skirt"},
+                    {"first_vertex", character.skin.rest.num_vertices()},
+                    {"vertices", g.rest.num_vertices()},
+                    {"rings", g.grid.rings},
+                    {"columns", g.grid.columns},
+                    {"length", g.length * s},
+                    {"flare_deg", g.flare * 180 / M_PI},
+                    {"thickness", g.thickness * s}};
+  }
   nlohmann::json joints = nlohmann::json::array();
   for (std::size_t i = 0; i < character.skeleton.size(); ++i) {
     const Eigen::Vector3d o = character.skeleton.rest_offsets[i] * s;
@@ -193,10 +206,11 @@ void run_synth(const Session& session, const StageArgs& args) {
   log::Timer timer;
   Character character = make_procedural_character(options.character, options.seed,
                                                   studio_key_color(options.studio));
+  const Mesh surface = rest_surface(character);
   const double s = options.scale;
-  log::info("performer: {} vertices, {} triangles, {} joints, height {:.3g} m{} ({:.1f} s)",
-            character.skin.rest.num_vertices(), character.skin.rest.num_triangles(),
-            character.skeleton.size(), character.height * s,
+  log::info("performer: {} vertices, {} triangles, {} joints, height {:.3g} m{}{} ({:.1f} s)",
+            surface.num_vertices(), surface.num_triangles(), character.skeleton.size(),
+            character.height * s, character.garment ? ", wearing a skirt" : "",
             s == 1 ? std::string() : fmt::format(" (the scene at scale {:g})", s), timer.seconds());
 
   // Every take is generated before anything is written: a take that cannot be performed
@@ -216,8 +230,7 @@ void run_synth(const Session& session, const StageArgs& args) {
     for (const Camera& cam : rig) {
       pixels += static_cast<std::uintmax_t>(cam.intrinsics.width) * cam.intrinsics.height;
     }
-    const std::uintmax_t mesh_bytes = 12 * character.skin.rest.num_vertices() +
-                                      13 * character.skin.rest.num_triangles() + 512;
+    const std::uintmax_t mesh_bytes = 12 * surface.num_vertices() + 13 * surface.num_triangles() + 512;
     require_free_space(session.root(), frames * (4 * pixels + mesh_bytes),
                        fmt::format("synth's {} frames of {} cameras", frames, rig.size()));
   }
@@ -229,12 +242,16 @@ void run_synth(const Session& session, const StageArgs& args) {
       scaled_cameras(perturb_calibration(rig, options.calibration_noise, options.seed), s));
   const fs::path gt = session.ground_truth_dir();
   write_colmap_model(gt / "calibration", scaled_cameras(rig, s));
-  write_mesh(gt / "template.ply", s == 1 ? character.skin.rest : scaled_mesh(character.skin.rest, s));
+  write_mesh(gt / "template.ply", s == 1 ? surface : scaled_mesh(surface, s));
   write_image_atomic(gt / "texture.png", character.texture);
-  write_json(gt / "character.json", character_json(character, s));
+  write_json(gt / "character.json", character_json(character, surface, s));
   {
+    YAML::Node used = to_yaml(options);
+    if (options.character.garment == "none") {
+      for (const char* key : CharacterOptions::kGarmentKeys) used["character"].remove(key);
+    }
     YAML::Emitter out;
-    out << to_yaml(options);
+    out << used;
     write_file_atomic(gt / "synth_options.yaml", std::string(out.c_str()) + "\n");
   }
 
@@ -257,8 +274,9 @@ void run_synth(const Session& session, const StageArgs& args) {
   for (const MotionClip& clip : clips) {
     const MotionSpec& spec = clip.spec;
     const int frames = static_cast<int>(clip.poses.size());
+    PerformerSurface performer(character, clip.fps);
     for (int f = 0; f < frames; ++f) {
-      Mesh posed = skin_mesh(character.skin, forward_kinematics(character.skeleton, clip.poses[f]));
+      Mesh posed = performer.next(clip.poses[f]);
       const std::string name = frame_name(f);
       Mesh gt_mesh;
       gt_mesh.positions = posed.positions;

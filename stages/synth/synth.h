@@ -34,7 +34,7 @@ struct CalibrationNoise {
 
 struct SynthOptions {
   std::uint64_t seed = 1;
-  CharacterOptions character;  // the performer (not options: one performer, sized by `scale`)
+  CharacterOptions character;  // the performer
   RigOptions rig;
   StudioOptions studio;
   CalibrationNoise calibration_noise;
@@ -50,6 +50,7 @@ struct SynthOptions {
   template <class V>
   void visit(V& v) {
     v("seed", seed, "random seed: every random choice derives from it (same seed, same bytes)");
+    v("character", character, "the performer: body and clothing");
     v("rig", rig, "camera rig");
     v("studio", studio, "backdrop, noise, anti-aliasing");
     v("calibration_noise", calibration_noise, "error added to the written calibration");

@@ -7,9 +7,18 @@
 
 #include "pipeline/core/error.h"
 #include "tests/synth/debug_render.h"
+#include "tests/synth/motion_specs.h"
 
 namespace fourd::synth {
 namespace {
+
+using test::dance;
+using test::jump;
+using test::make_spec;
+using test::reach;
+using test::run;
+using test::turn;
+using test::walk;
 
 constexpr double kFps = 25;
 constexpr double kGravity = 9.81;
@@ -21,46 +30,6 @@ const Character& performer() {
     return make_procedural_character(options, 1);
   }();
   return character;
-}
-
-MotionSpec make_spec(const std::string& kind, int frames) {
-  MotionSpec spec;
-  spec.take = kind;
-  spec.kind = kind;
-  spec.frames = frames;
-  return spec;
-}
-
-MotionSpec walk(double speed, int frames = 80) {
-  MotionSpec s = make_spec("walk", frames);
-  s.speed = speed;
-  return s;
-}
-
-MotionSpec run(double speed, int frames = 60) {
-  MotionSpec s = make_spec("run", frames);
-  s.speed = speed;
-  return s;
-}
-
-MotionSpec turn(double speed, double rate, int frames = 100) {
-  MotionSpec s = make_spec("turn", frames);
-  s.speed = speed;
-  s.turn_rate = rate;
-  return s;
-}
-
-MotionSpec jump(double length, double height, int frames = 70) {
-  MotionSpec s = make_spec("jump", frames);
-  s.jump_length = length;
-  s.jump_height = height;
-  return s;
-}
-
-MotionSpec reach(double x, double y, double z, int frames = 60) {
-  MotionSpec s = make_spec("reach", frames);
-  s.reach_target = {x, y, z};
-  return s;
 }
 
 double parameter(const MotionClip& clip, const std::string& name) {
@@ -293,6 +262,38 @@ TEST(Motion, TurnFollowsACircularArcAtTheTurnRate) {
   }
 }
 
+// A dance turns by the turn rate over the take, spinning in its middle; a foot is always on the
+// floor, none below it; it starts and ends standing, arms hanging.
+TEST(Motion, DanceSpinsByTheTurnRateOnTheSpot) {
+  for (double rate : {180.0, -90.0}) {
+    MotionSpec spec = dance(rate);
+    spec.start_heading = 30;
+    spec.start_position = {0.4, -0.2};
+    const MotionClip clip = generate_motion(performer().skeleton, spec, kFps);
+    const double seconds = (spec.frames - 1) / kFps;
+    EXPECT_NEAR(parameter(clip, "direction_deg_per_s"), rate, 1e-9);
+    EXPECT_NEAR(parameter(clip, "spin_deg"), rate * seconds, 1e-9);
+    EXPECT_GT(std::abs(parameter(clip, "spin_peak_deg_per_s")), 2 * std::abs(rate));
+    EXPECT_NEAR(clip.root.front().heading, 30 * M_PI / 180, 1e-12);
+    EXPECT_NEAR(clip.root.back().heading - clip.root.front().heading, rate * seconds * M_PI / 180, 1e-9);
+    for (const RootState& r : clip.root) EXPECT_LT((r.position - Eigen::Vector2d(0.4, -0.2)).norm(), 1e-12);
+    // On the spot: the pelvis sways over the feet, no further.
+    for (int f = 0; f < spec.frames; ++f) {
+      EXPECT_LT((joint(clip, f, "pelvis").head<2>() - Eigen::Vector2d(0.4, -0.2)).norm(), 0.06) << f;
+    }
+    const auto meshes = skin_all(clip);
+    EXPECT_EQ(flight_frames(meshes), 0);
+    EXPECT_GE(lowest_vertex(meshes), -0.01f);
+    // The spin's middle: arms held out, the hands far from the hips.
+    const int middle = spec.frames / 2;
+    EXPECT_GT((joint(clip, middle, "hand_l") - joint(clip, middle, "hand_r")).norm(), 1.2);
+    for (int f : {0, spec.frames - 1}) {
+      EXPECT_LT((joint(clip, f, "hand_l") - joint(clip, f, "hand_r")).norm(), 0.7) << f;
+    }
+    expect_continuous(clip, 0.35);
+  }
+}
+
 TEST(Motion, JumpHasExactLengthAndApexHeight) {
   struct Case {
     double length, height;
@@ -424,7 +425,7 @@ TEST(Motion, StartStateAndPhase) {
 }
 
 TEST(Motion, Deterministic) {
-  for (const MotionSpec& spec : {walk(1.1), run(3.0), turn(1.0, 30), jump(1.0, 0.3), reach(0.5, -0.2, 1.1)}) {
+  for (const MotionSpec& spec : {walk(1.1), run(3.0), turn(1.0, 30), jump(1.0, 0.3), reach(0.5, -0.2, 1.1), dance(120)}) {
     const MotionClip a = generate_motion(performer().skeleton, spec, kFps);
     const MotionClip b = generate_motion(performer().skeleton, spec, kFps);
     ASSERT_EQ(a.poses.size(), b.poses.size());
@@ -450,7 +451,8 @@ TEST(Motion, RootHeadingIsContinuous) {
 
 TEST(Motion, RejectsImpossibleSpecs) {
   const Skeleton& sk = performer().skeleton;
-  EXPECT_THROW(generate_motion(sk, make_spec("dance", 30), kFps), ConfigError);
+  EXPECT_THROW(generate_motion(sk, make_spec("cartwheel", 30), kFps), ConfigError);
+  EXPECT_THROW(generate_motion(sk, dance(180, 20), kFps), ConfigError);  // too short
   EXPECT_THROW(generate_motion(sk, jump(1.0, 0.3, 10), kFps), ConfigError);  // too short
   EXPECT_THROW(generate_motion(sk, reach(0.5, -0.2, 3.0), kFps), ConfigError);
   EXPECT_THROW(generate_motion(sk, reach(0.5, -0.2, 1.0, 20), kFps), ConfigError);
@@ -468,7 +470,8 @@ TEST(Motion, RejectsImpossibleSpecs) {
 TEST(Motion, DebugViews) {
   if (debug_view::debug_dir().empty()) GTEST_SKIP() << "set FOURD_SYNTH_DEBUG_DIR to write views";
   const Character& c = performer();
-  for (const MotionSpec& spec : {walk(1.3, 28), run(3.0, 19), turn(1.0, 45, 60), jump(1.2, 0.3), reach(0.45, -0.25, 0.3)}) {
+  for (const MotionSpec& spec : {walk(1.3, 28), run(3.0, 19), turn(1.0, 45, 60), jump(1.2, 0.3), reach(0.45, -0.25, 0.3),
+                                 dance(180)}) {
     const MotionClip clip = generate_motion(c.skeleton, spec, kFps);
     std::vector<cv::Mat> side, front;
     const int shown = 8, step = std::max(1, spec.frames / shown);
