@@ -31,6 +31,12 @@
 // template).
 // Deformations are always expressed relative to the template at rest, so registering frame
 // after frame along the tree composes nothing but the starting guess.
+//
+// One file per algorithm, sharing registration_internal.h: registration.cpp (rigid ICP, the
+// passes and the choice among retries, the fit's measures), correspondences.cpp (closest
+// points both ways), deformation_graph.cpp (the graph and the template model),
+// gauss_newton.cpp (the graph's solver), arap_refinement.cpp (the vertex-level refinement and
+// unfolding), landmarks.cpp (the frame's tips and the limb starts).
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <vector>

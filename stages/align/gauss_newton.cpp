@@ -1,0 +1,300 @@
+// Gauss-Newton on the embedded deformation graph: per step, the data terms (both ways), the
+// landmarks and the as-rigid-as-possible regulariser summed into a block-sparse system.
+#include "stages/align/registration_internal.h"
+
+#include <tbb/parallel_for.h>
+
+#include <Eigen/SparseCholesky>
+#include <algorithm>
+#include <cstdint>
+#include <unordered_map>
+
+namespace fourd::align::detail {
+
+namespace {
+
+// The block pattern of the Gauss-Newton matrix: a 6x6 block per pair of nodes that share a
+// vertex or a graph edge. Fixed for the template, so the sparse Cholesky analysis is reused.
+class GraphSystem {
+ public:
+  // With `reverse_matches`, also the blocks the reverse matches need.
+  GraphSystem(const TemplateModel& model, bool reverse_matches) : model_(model) {
+    const DeformationGraph& g = model.graph;
+    nodes_ = static_cast<int>(g.node_vertex.size());
+    for (int j = 0; j < nodes_; ++j) block_id(j, j);
+    const int nv = static_cast<int>(model.rest.num_vertices()), k = g.influences;
+    for (int v = 0; v < nv; ++v) {
+      for (int a = 0; a < k; ++a) {
+        for (int b = 0; b < k; ++b) {
+          int na = g.influence_node[v * k + a], nb = g.influence_node[v * k + b];
+          if (na >= 0 && nb >= 0 && na <= nb) block_id(na, nb);
+        }
+      }
+    }
+    // Reverse matches tie the nodes of a triangle's three vertices together.
+    for (const Tri& t : reverse_matches ? model.rest.triangles : std::vector<Tri>{}) {
+      for (int a = 0; a < 3 * k; ++a) {
+        for (int b = 0; b < 3 * k; ++b) {
+          const int na = g.influence_node[t[a / k] * k + a % k];
+          const int nb = g.influence_node[t[b / k] * k + b % k];
+          if (na >= 0 && nb >= 0 && na <= nb) block_id(na, nb);
+        }
+      }
+    }
+    for (int j = 0; j < nodes_; ++j) {
+      for (int n : g.node_neighbours[j]) block_id(std::min(j, n), std::max(j, n));
+    }
+  }
+
+  int unknowns() const { return 6 * nodes_; }
+
+  // Partial sums of the matrix blocks and the gradient. The data terms are summed in a fixed
+  // number of parts over fixed ranges of points, in parallel, and the parts are added in their
+  // order: the result does not depend on the thread count or scheduling (runs are repeatable
+  // bit for bit).
+  struct Part {
+    std::vector<Mat6> blocks;
+    Eigen::VectorXd gradient;
+  };
+
+  // Zeroes `parts` partial sums (at least one: part 0, which add() and add_gradient() fill).
+  void clear(int parts) {
+    parts_.resize(std::max(parts, 1));
+    for (Part& part : parts_) {
+      part.blocks.assign(pairs_.size(), Mat6::Zero());  // reuses the storage
+      part.gradient.setZero(6 * nodes_);
+    }
+  }
+  Part& part(int i) { return parts_[i]; }
+  // H(a, b) += m for a <= b (the lower triangle follows by symmetry). Thread-safe for distinct
+  // parts.
+  void add(Part& part, int a, int b, const Mat6& m) const {
+    if (a <= b) {
+      part.blocks[ids_.at(key(a, b))] += m;
+    } else {
+      part.blocks[ids_.at(key(b, a))] += m.transpose();
+    }
+  }
+  void add(int a, int b, const Mat6& m) { add(parts_[0], a, b, m); }
+  static void add_gradient(Part& part, int a, const Vec6& g) { part.gradient.segment<6>(6 * a) += g; }
+  void add_gradient(int a, const Vec6& g) { add_gradient(parts_[0], a, g); }
+  // Adds parts 1.. into part 0, in order. The parts stay allocated: the next clear() zeroes
+  // them instead of allocating them again every Gauss-Newton step.
+  void sum_parts() {
+    for (std::size_t i = 1; i < parts_.size(); ++i) {
+      for (std::size_t b = 0; b < pairs_.size(); ++b) parts_[0].blocks[b] += parts_[i].blocks[b];
+      parts_[0].gradient += parts_[i].gradient;
+    }
+  }
+
+  SparseMatrix matrix(double damping) const {
+    std::vector<Eigen::Triplet<double>> triplets;
+    triplets.reserve(pairs_.size() * 72);
+    for (std::size_t i = 0; i < pairs_.size(); ++i) {
+      const auto [a, b] = pairs_[i];
+      const Mat6& m = parts_[0].blocks[i];
+      for (int r = 0; r < 6; ++r) {
+        for (int c = 0; c < 6; ++c) {
+          double value = m(r, c);
+          if (a == b && r == c) value += damping;
+          triplets.emplace_back(6 * a + r, 6 * b + c, value);
+          if (a != b) triplets.emplace_back(6 * b + c, 6 * a + r, value);
+        }
+      }
+    }
+    SparseMatrix h(6 * nodes_, 6 * nodes_);
+    h.setFromTriplets(triplets.begin(), triplets.end());
+    return h;
+  }
+  const Eigen::VectorXd& gradient() const { return parts_[0].gradient; }
+
+ private:
+  std::uint64_t key(int a, int b) const { return static_cast<std::uint64_t>(a) * nodes_ + b; }
+  int block_id(int a, int b) {
+    auto [it, inserted] = ids_.try_emplace(key(a, b), static_cast<int>(pairs_.size()));
+    if (inserted) pairs_.emplace_back(a, b);
+    return it->second;
+  }
+
+  const TemplateModel& model_;
+  int nodes_ = 0;
+  std::unordered_map<std::uint64_t, int> ids_;
+  std::vector<std::pair<int, int>> pairs_;
+  std::vector<Part> parts_;
+};
+
+// The Jacobian of a deformed point with respect to one graph node's update (a rotation
+// vector and a translation): J = [S, w I].
+struct NodeJacobian {
+  int node = -1;
+  Mat3d s = Mat3d::Zero();
+  double w = 0;
+};
+
+// A combination sum_e c_e x(v_e) of deformed template vertices (one vertex, or a barycentric
+// point of a triangle): its position, and its Jacobian per node it depends on (at most
+// 3 * influences entries). Returns the number of nodes.
+int point_jacobian(const TemplateModel& model, const DeformationState& state, const int* vertices,
+                   const double* coefficients, int count, Vec3d* deformed, NodeJacobian* out) {
+  const DeformationGraph& g = model.graph;
+  const int k = g.influences;
+  int nodes = 0;
+  *deformed = Vec3d::Zero();
+  for (int e = 0; e < count; ++e) {
+    const int v = vertices[e];
+    const Vec3d rest = model.rest.positions[v].cast<double>();
+    for (int a = 0; a < k; ++a) {
+      const int j = g.influence_node[v * k + a];
+      if (j < 0) continue;
+      const double w = coefficients[e] * g.influence_weight[v * k + a];
+      const Vec3d x = state.rotation[j] * (rest - g.node_position[j]);
+      *deformed += w * (x + g.node_position[j] + state.translation[j]);
+      int slot = 0;
+      while (slot < nodes && out[slot].node != j) ++slot;
+      if (slot == nodes) {
+        out[nodes++] = NodeJacobian{j, Mat3d::Zero(), 0.0};
+      }
+      out[slot].s -= w * skew(x);
+      out[slot].w += w;
+    }
+  }
+  return nodes;
+}
+
+// Adds |P^(1/2) (point - target)|^2 for a point with the given node Jacobians, residual
+// e = point - target and symmetric weight matrix P.
+void add_point_term(const NodeJacobian* jac, int nodes, const Mat3d& p, const Vec3d& e,
+                    const GraphSystem& system, GraphSystem::Part& part) {
+  const Vec3d pe = p * e;
+  for (int a = 0; a < nodes; ++a) {
+    Vec6 grad;
+    grad << jac[a].s.transpose() * pe, jac[a].w * pe;
+    GraphSystem::add_gradient(part, jac[a].node, grad);
+    const Mat3d sp = jac[a].s.transpose() * p;
+    for (int b = 0; b < nodes; ++b) {
+      if (jac[a].node > jac[b].node) continue;
+      Mat6 block;
+      block << sp * jac[b].s, jac[b].w * sp, jac[a].w * p * jac[b].s, jac[a].w * jac[b].w * p;
+      system.add(part, jac[a].node, jac[b].node, block);
+    }
+  }
+}
+
+// One Gauss-Newton step of the graph energy; updates `state` (rotations, translations).
+// Returns false when the system could not be factorised.
+bool graph_gauss_newton_step(const TemplateModel& model, const std::vector<Correspondence>& matches,
+                             const std::vector<ReverseMatch>& reverse,
+                             const std::vector<Landmark>& landmarks, double stiffness,
+                             const RegistrationOptions& options, GraphSystem& system,
+                             Eigen::SimplicialLDLT<SparseMatrix>& solver, bool analyse,
+                             DeformationState* state) {
+  const DeformationGraph& g = model.graph;
+  const int nv = static_cast<int>(model.rest.num_vertices());
+  // Data weight per vertex: nodes / vertices, so that the balance with the regulariser does not
+  // depend on the template's resolution.
+  const double data_weight = static_cast<double>(g.node_vertex.size()) / nv;
+  const double reverse_weight =
+      reverse.empty() ? 0.0 : options.reverse_weight * data_weight * nv / reverse.size();
+  // Every forward and reverse match adds its term to the part its index falls in.
+  constexpr int kParts = 8;
+  const std::size_t terms = static_cast<std::size_t>(nv) + reverse.size();
+  system.clear(kParts);
+  tbb::parallel_for(0, kParts, [&](int part_index) {
+    GraphSystem::Part& part = system.part(part_index);
+    NodeJacobian jac[3 * 8];
+    Vec3d deformed;
+    const std::size_t begin = terms * part_index / kParts, end = terms * (part_index + 1) / kParts;
+    for (std::size_t i = begin; i < end; ++i) {
+      if (i < static_cast<std::size_t>(nv)) {
+        // Data: point-to-plane plus a little point-to-point, with P = c (n n^T + mu I).
+        const int v = static_cast<int>(i);
+        const Correspondence& m = matches[v];
+        if (m.weight <= 0) continue;
+        const double one = 1.0;
+        const int nodes = point_jacobian(model, *state, &v, &one, 1, &deformed, jac);
+        const Mat3d p = data_weight * m.weight * (m.normal * m.normal.transpose() +
+                                                  options.point_to_point * Mat3d::Identity());
+        add_point_term(jac, nodes, p, deformed - m.point, system, part);
+      } else {
+        // Reverse data: frame points pulling the template surface points closest to them.
+        const ReverseMatch& m = reverse[i - nv];
+        if (m.weight <= 0) continue;
+        const int nodes = point_jacobian(model, *state, m.triangle.data(), m.barycentric.data(),
+                                         3, &deformed, jac);
+        const Mat3d p = reverse_weight * m.weight * (m.normal * m.normal.transpose() +
+                                                     options.point_to_point * Mat3d::Identity());
+        add_point_term(jac, nodes, p, deformed - m.point, system, part);
+      }
+    }
+  });
+  system.sum_parts();
+
+  // Landmarks: point-to-point, each weighing as much as landmark_weight vertices.
+  for (const Landmark& l : landmarks) {
+    NodeJacobian jac[8];
+    Vec3d deformed;
+    const double one = 1.0;
+    const int nodes = point_jacobian(model, *state, &l.vertex, &one, 1, &deformed, jac);
+    add_point_term(jac, nodes, options.landmark_weight * data_weight * Mat3d::Identity(),
+                   deformed - l.point, system, system.part(0));
+  }
+
+  // Regulariser: each node predicts its neighbours' positions as rigidly as possible.
+  for (std::size_t j = 0; j < g.node_vertex.size(); ++j) {
+    for (int n : g.node_neighbours[j]) {
+      const Vec3d d = g.node_position[n] - g.node_position[j];
+      const Vec3d rd = state->rotation[j] * d;
+      const Vec3d r = rd + g.node_position[j] + state->translation[j] - g.node_position[n] -
+                      state->translation[n];
+      const double w = stiffness * std::min(model.node_softness[j], model.node_softness[n]);
+      Eigen::Matrix<double, 3, 6> jj, jn;
+      jj << -skew(rd), Mat3d::Identity();
+      jn << Mat3d::Zero(), -Mat3d::Identity();
+      system.add_gradient(static_cast<int>(j), w * jj.transpose() * r);
+      system.add_gradient(n, w * jn.transpose() * r);
+      system.add(static_cast<int>(j), static_cast<int>(j), w * jj.transpose() * jj);
+      system.add(n, n, w * jn.transpose() * jn);
+      system.add(static_cast<int>(j), n, w * jj.transpose() * jn);
+    }
+  }
+
+  SparseMatrix h = system.matrix(1e-6 * std::max(stiffness, 1e-3));
+  if (analyse) solver.analyzePattern(h);
+  solver.factorize(h);
+  if (solver.info() != Eigen::Success) return false;
+  const Eigen::VectorXd delta = solver.solve(-system.gradient());
+  if (solver.info() != Eigen::Success || !delta.allFinite()) return false;
+  for (std::size_t j = 0; j < g.node_vertex.size(); ++j) {
+    state->rotation[j] = nearest_rotation(rotation_from_vector(delta.segment<3>(6 * j)) * state->rotation[j]);
+    state->translation[j] += delta.segment<3>(6 * j + 3);
+  }
+  return true;
+}
+
+}  // namespace
+
+struct GraphGaussNewton::Impl {
+  Impl(const TemplateModel& model, bool reverse_matches) : model(model), system(model, reverse_matches) {}
+  const TemplateModel& model;
+  GraphSystem system;
+  Eigen::SimplicialLDLT<SparseMatrix> solver;
+  bool analysed = false;
+};
+
+GraphGaussNewton::GraphGaussNewton(const TemplateModel& model, bool reverse_matches)
+    : impl_(std::make_unique<Impl>(model, reverse_matches)) {}
+
+GraphGaussNewton::~GraphGaussNewton() = default;
+
+bool GraphGaussNewton::step(const std::vector<Correspondence>& matches,
+                            const std::vector<ReverseMatch>& reverse,
+                            const std::vector<Landmark>& landmarks, double stiffness,
+                            const RegistrationOptions& options, DeformationState* state) {
+  const bool solved = graph_gauss_newton_step(impl_->model, matches, reverse, landmarks, stiffness,
+                                              options, impl_->system, impl_->solver,
+                                              !impl_->analysed, state);
+  impl_->analysed = true;
+  return solved;
+}
+
+}  // namespace fourd::align::detail
