@@ -46,7 +46,8 @@ YAML::Node shortest_numbers(const YAML::Node& node);
 
 template <class T>
 OptionsSection options_section(std::string name) {
-  return {std::move(name), describe_options(T{}), shortest_numbers(to_yaml(T{}))};
+  const T defaults{};
+  return {std::move(name), describe_options(defaults), shortest_numbers(to_yaml(defaults))};
 }
 
 struct StageInfo {

@@ -592,7 +592,7 @@ Shaded StudioRenderer::Impl::shade(const Eigen::Vector3d& o, const Eigen::Vector
   }
   double t_box = std::numeric_limits<double>::infinity();
   const Furniture* piece = nullptr;
-  Eigen::Vector3d box_normal;
+  Eigen::Vector3d box_normal = Eigen::Vector3d::Zero();
   for (const Furniture& f : furniture) {
     double t;
     Eigen::Vector3d n;
