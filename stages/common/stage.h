@@ -46,8 +46,17 @@ YAML::Node shortest_numbers(const YAML::Node& node);
 
 template <class T>
 OptionsSection options_section(std::string name) {
+  // GCC 12 at -O3 takes a default-constructed options struct's strings for uninitialised
+  // (-Wmaybe-uninitialized, a known false positive with inlined std::string destructors).
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
   const T defaults{};
   return {std::move(name), describe_options(defaults), shortest_numbers(to_yaml(defaults))};
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
 }
 
 struct StageInfo {
