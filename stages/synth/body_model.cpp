@@ -72,10 +72,8 @@ double primitive_distance(const BodyPrimitive& prim, const Vector3d& p) {
   return round_cone_distance(q, prim.a, b, prim.ra, prim.rb) * prim.scale.minCoeff();
 }
 
-namespace {
-
 BodyPrimitive ellipsoid(int joint, const Vector3d& centre, const Vector3d& radii,
-                        const Eigen::Matrix3d& axes = Eigen::Matrix3d::Identity()) {
+                        const Eigen::Matrix3d& axes) {
   BodyPrimitive e;
   e.kind = BodyPrimitive::kEllipsoid;
   e.joint = joint;
@@ -86,7 +84,7 @@ BodyPrimitive ellipsoid(int joint, const Vector3d& centre, const Vector3d& radii
 }
 
 BodyPrimitive round_cone(int joint, const Vector3d& a, double ra, const Vector3d& b, double rb,
-                         const Vector3d& scale = Vector3d::Ones()) {
+                         const Vector3d& scale) {
   BodyPrimitive c;
   c.scale = scale;
   c.kind = BodyPrimitive::kRoundCone;
@@ -98,16 +96,37 @@ BodyPrimitive round_cone(int joint, const Vector3d& a, double ra, const Vector3d
   return c;
 }
 
-}  // namespace
+void set_skeleton(BodyModel& body, const std::vector<std::pair<std::string, std::string>>& joints,
+                  const std::vector<Vector3d>& positions) {
+  Skeleton& sk = body.skeleton;
+  sk = Skeleton();
+  for (const auto& [name, parent] : joints) {
+    sk.names.push_back(name);
+    sk.parents.push_back(parent.empty() ? -1 : sk.find(parent));
+  }
+  for (std::size_t i = 0; i < positions.size(); ++i) {
+    const int parent = sk.parents[i];
+    sk.rest_offsets.push_back(parent < 0 ? positions[i]
+                                         : Vector3d(positions[i] - positions[static_cast<std::size_t>(parent)]));
+  }
+  body.rest_positions = positions;
+}
+
+BodyModel scaled_body(double scale, double build, Girth* girth) {
+  BodyModel body;
+  body.scale = scale;
+  body.blend_radius = 0.012 * scale;
+  girth->trunk = scale * build;
+  girth->extremities = scale * std::pow(build, 0.3);
+  return body;
+}
 
 BodyModel make_body_model(double height, double build) {
-  BodyModel body;
   const double s = height / kNominalHeight;
-  body.scale = s;
-  body.blend_radius = 0.012 * s;
   // Girth: torso and limbs follow the build fully, head, hands and feet barely.
-  const double g = s * build;
-  const double g_ext = s * std::pow(build, 0.3);
+  Girth girth;
+  BodyModel body = scaled_body(s, build, &girth);
+  const double g = girth.trunk, g_ext = girth.extremities;
 
   const double drop = kArmDropDeg * M_PI / 180.0;
   // Arm directions at rest, left (+y) and right (-y).
@@ -143,16 +162,10 @@ BodyModel make_body_model(double height, double build) {
     set(("toe" + sfx).c_str(), {0.13, 0.09 * y, 0.03});
   }
 
-  Skeleton& sk = body.skeleton;
-  for (const JointSpec& j : kJoints) {
-    sk.names.push_back(j.name);
-    sk.parents.push_back(j.parent ? sk.find(j.parent) : -1);
-  }
-  for (std::size_t i = 0; i < pos.size(); ++i) {
-    const int parent = sk.parents[i];
-    sk.rest_offsets.push_back(parent < 0 ? pos[i] : Vector3d(pos[i] - pos[static_cast<std::size_t>(parent)]));
-  }
-  body.rest_positions = pos;
+  std::vector<std::pair<std::string, std::string>> joints;
+  for (const JointSpec& j : kJoints) joints.emplace_back(j.name, j.parent ? j.parent : "");
+  set_skeleton(body, joints, pos);
+  const Skeleton& sk = body.skeleton;
 
   // Primitives, in nominal metres (scaled below): torso, head, arms, legs.
   auto J = [&](const std::string& name) { return sk.find(name); };
@@ -236,11 +249,22 @@ BodyModel moved_body(BodyModel body, const Vector3d& shift, double factor) {
   }
   for (Vector3d& p : body.rest_positions) p = (p + shift) * factor;
   body.blend_radius *= factor;
+  auto move = [&](Vector3d& p) { p = (p + shift) * factor; };
+  auto move_axis = [&](LimbAxis& axis) {
+    move(axis.start);
+    move(axis.end);
+  };
   for (auto* axes : {&body.arms, &body.legs, &body.feet}) {
-    for (LimbAxis& axis : *axes) {
-      axis.start = (axis.start + shift) * factor;
-      axis.end = (axis.end + shift) * factor;
+    for (LimbAxis& axis : *axes) move_axis(axis);
+  }
+  if (body.quadruped) {
+    QuadrupedLayout& q = *body.quadruped;
+    for (LimbAxis* axis : {&q.trunk, &q.head, &q.tail}) move_axis(*axis);
+    for (auto& leg : q.legs) {
+      for (Vector3d& p : leg) move(p);
     }
+    for (Vector3d& eye : q.eyes) move(eye);
+    q.hoof_top = (q.hoof_top + shift.z()) * factor;
   }
   return body;
 }

@@ -4,6 +4,9 @@
 // Internal to the synth stage.
 #include <Eigen/Core>
 #include <array>
+#include <optional>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "stages/synth/character.h"
@@ -33,6 +36,18 @@ struct LimbAxis {
 
 inline constexpr std::size_t kMaxPrimitives = 64;
 
+// Where the quadruped's texture charts lie (quadruped.h), in the model's coordinates.
+struct QuadrupedLayout {
+  LimbAxis trunk;  // rump -> chest along the trunk's centre line
+  LimbAxis head;   // neck base -> muzzle tip
+  LimbAxis tail;   // tail root -> tip
+  // Per leg (front left, front right, hind left, hind right): its joints top to fetlock, then
+  // the hoof's centre.
+  std::array<std::vector<Eigen::Vector3d>, 4> legs;
+  double hoof_top = 0;                   // height of the hooves' tops above the floor [m]
+  std::array<Eigen::Vector3d, 2> eyes;  // left, right
+};
+
 struct BodyModel {
   Skeleton skeleton;
   std::vector<Eigen::Vector3d> rest_positions;  // world position of every joint at rest
@@ -43,10 +58,33 @@ struct BodyModel {
   std::array<LimbAxis, 2> arms;   // shoulder -> finger tips
   std::array<LimbAxis, 2> legs;   // hip -> ankle
   std::array<LimbAxis, 2> feet;   // heel end -> toe end, at mid-foot height
+  // The quadruped's charts (make_quadruped_model); unset for the human, whose charts are the
+  // axes above.
+  std::optional<QuadrupedLayout> quadruped;
 };
 
 // The body for the given height and build (no randomness: the shape depends on the options).
 BodyModel make_body_model(double height, double build);
+
+// A body at `scale` times its nominal size, yet without joints or primitives: its scale and
+// smooth-union radius. `girth`: the factor of the trunk's and the limbs' radii (the build fully)
+// and of the head's and the extremities' (the build barely).
+struct Girth {
+  double trunk = 1, extremities = 1;
+};
+BodyModel scaled_body(double scale, double build, Girth* girth);
+
+// Primitives carried by `joint`: an ellipsoid (semi-axes `radii` along the columns of `axes`),
+// and a round cone from a sphere of radius ra at a to one of radius rb at b, stretched about a by
+// `scale` along the world axes.
+BodyPrimitive ellipsoid(int joint, const Eigen::Vector3d& centre, const Eigen::Vector3d& radii,
+                        const Eigen::Matrix3d& axes = Eigen::Matrix3d::Identity());
+BodyPrimitive round_cone(int joint, const Eigen::Vector3d& a, double ra, const Eigen::Vector3d& b, double rb,
+                         const Eigen::Vector3d& scale = Eigen::Vector3d::Ones());
+// body.skeleton and body.rest_positions from joints in topological order (name, parent's name;
+// "" for the root) and their rest world positions.
+void set_skeleton(BodyModel& body, const std::vector<std::pair<std::string, std::string>>& joints,
+                  const std::vector<Eigen::Vector3d>& positions);
 
 // Signed distance (approximate for ellipsoids) from p to one primitive; negative inside.
 double primitive_distance(const BodyPrimitive& primitive, const Eigen::Vector3d& p);

@@ -17,6 +17,7 @@
 #include "stages/synth/clothing.h"
 #include "stages/synth/garment.h"
 #include "stages/synth/implicit_mesh.h"
+#include "stages/synth/quadruped.h"
 
 namespace fourd::synth {
 namespace {
@@ -184,22 +185,31 @@ std::vector<detail::ChartRef> vertex_charts(const BodyModel& body, const Eigen::
 }  // namespace
 
 void CharacterOptions::check() const {
+  if (body != "human" && body != "quadruped") {
+    throw ConfigError(fmt::format("body '{}' is not one of human, quadruped", body));
+  }
   if (garment != "none" && garment != "skirt") {
     throw ConfigError(fmt::format("garment '{}' is not one of none, skirt", garment));
+  }
+  if (body == "quadruped" && garment != "none") {
+    throw ConfigError(fmt::format("garment '{}': the quadruped wears none", garment));
+  }
+  const double lo = body == "human" ? 1.2 : 0.3, hi = 2.2;
+  if (!(height >= lo && height <= hi)) {
+    throw ConfigError(fmt::format("height {} m: a {} is {} to {} m tall", height, body, lo, hi));
   }
 }
 
 Character make_procedural_character(const CharacterOptions& options, std::uint64_t seed,
                                     const std::optional<Eigen::Vector3d>& wardrobe_key) {
-  if (!(options.height > 0.5 && options.height < 3.0)) {
-    throw ConfigError(fmt::format("character.height {} m is not a human height", options.height));
-  }
   options.check();
   if (options.target_vertices < 500 || options.texture_size < 16) {
     throw ConfigError(fmt::format("character: target_vertices {} / texture_size {} too small",
                                   options.target_vertices, options.texture_size));
   }
-  const BodyModel body = detail::make_body_model(options.height, options.build);
+  const bool quadruped = options.body == "quadruped";
+  const BodyModel body = quadruped ? detail::make_quadruped_model(options.height, options.build)
+                                   : detail::make_body_model(options.height, options.build);
   Mesh mesh = mesh_body(body, options.target_vertices);
   require_closed_oriented(mesh);
 
@@ -210,10 +220,14 @@ Character make_procedural_character(const CharacterOptions& options, std::uint64
 
   const Eigen::MatrixXd dense = dense_weights(body, mesh, options);
   pick_influences(dense, skin);
-  const auto charts = vertex_charts(body, dense);
-  mesh.uvs.resize(mesh.num_vertices());
-  for (std::size_t v = 0; v < mesh.num_vertices(); ++v) {
-    mesh.uvs[v] = detail::chart_uv(body, charts[v], mesh.positions[v].cast<double>());
+  if (quadruped) {
+    mesh.uvs = detail::quadruped_uvs(body, mesh, dense);
+  } else {
+    const auto charts = vertex_charts(body, dense);
+    mesh.uvs.resize(mesh.num_vertices());
+    for (std::size_t v = 0; v < mesh.num_vertices(); ++v) {
+      mesh.uvs[v] = detail::chart_uv(body, charts[v], mesh.positions[v].cast<double>());
+    }
   }
   mesh.texture = "texture.png";
 
@@ -244,7 +258,8 @@ Character make_procedural_character(const CharacterOptions& options, std::uint64
     character.garment = make_skirt(character, detail::moved_body(body, Vector3d(0, 0, -min_z), factor), options);
     chart = detail::SkirtChart{character.garment->waist_radius, character.garment->length, character.garment->flare};
   }
-  character.texture = detail::paint_clothing(body, options.texture_size, seed, wardrobe_key, chart);
+  character.texture = quadruped ? detail::paint_coat(body, options.texture_size, seed, wardrobe_key)
+                                : detail::paint_clothing(body, options.texture_size, seed, wardrobe_key, chart);
   return character;
 }
 

@@ -22,7 +22,10 @@ namespace fourd::synth {
 //
 // The procedural performer has 21 joints: pelvis, spine, chest, neck, head,
 // clavicle_{l,r}, upper_arm_{l,r}, forearm_{l,r}, hand_{l,r}, thigh_{l,r}, shin_{l,r},
-// foot_{l,r} (at the ankle), toe_{l,r} (at the ball of the foot).
+// foot_{l,r} (at the ankle), toe_{l,r} (at the ball of the foot). The procedural quadruped
+// (quadruped.h) has 24: pelvis, spine, chest, neck, head, tail_{0,1,2}, upper_arm_{l,r},
+// forearm_{l,r}, front_cannon_{l,r}, front_hoof_{l,r}, thigh_{l,r}, shin_{l,r},
+// hind_cannon_{l,r}, hind_hoof_{l,r}; it stands on four hooves facing kForward.
 struct Skeleton {
   std::vector<std::string> names;
   std::vector<int> parents;
@@ -40,6 +43,9 @@ struct Pose {
   Eigen::Vector3d root_position = Eigen::Vector3d::Zero();  // world position of joint 0
   std::vector<Eigen::Quaterniond> local_rotations;  // per joint, relative to the rest frame
 };
+
+// Whether the skeleton is the procedural quadruped's (it has hooves).
+bool is_quadruped(const Skeleton& skeleton);
 
 // The rest pose: root at rest_offsets[0], every local rotation the identity.
 Pose rest_pose(const Skeleton& skeleton);
@@ -76,7 +82,13 @@ struct Character {
 // seed. Same values and seed give bit-identical meshes, weights and texture.
 struct CharacterOptions {
   std::string name = "performer";
-  double height = 1.75;        // standing height, floor to the top of the head [m]
+  // "human", or "quadruped": a procedural hoofed animal (quadruped.h) that walks, trots and
+  // gallops (no garment).
+  std::string body = "human";
+  // Standing height, floor to the top of the head [m]: the human's 1.2 to 2.2 m, the
+  // quadruped's (to the tips of its ears, its highest point; its withers are at 0.75 of it)
+  // 0.3 to 2.2 m.
+  double height = 1.75;
   double build = 1.0;          // girth of torso and limbs relative to an average build
   int target_vertices = 5000;  // vertex count of the mesh (met within about 10 %)
   int texture_size = 1024;     // texture width and height [px]
@@ -105,15 +117,19 @@ struct CharacterOptions {
   // values of the procedural performer.
   template <class V>
   void visit(V& v) {
-    v("height", height, "standing height [m]", Range{1.2, 2.2});
+    v("body", body, "human | quadruped: a procedural hoofed animal that walks, trots and gallops");
+    v("height", height, "standing height to the top of the head [m] (a quadruped's: its ears' tips)",
+      Range{0.3, 2.2});
     v("build", build, "girth relative to an average build", Range{0.75, 1.35});
     v("garment", garment,
       "none | skirt: a loose garment over the body, its cloth simulated from the body's motion");
   }
-  void check() const;  // a known garment
+  void check() const;  // a known body and garment, a height for the body
 
   // The keys of the garment's options: a session without a garment records none of them.
   static constexpr const char* kGarmentKeys[] = {"garment"};
+  // The same for the body's: a human performer's session records none.
+  static constexpr const char* kBodyKeys[] = {"body"};
 };
 
 // A watertight, manifold, outward-oriented body mesh meshed from an implicit body of
@@ -122,6 +138,8 @@ struct CharacterOptions {
 // hair, shoes; never green, which is the backdrop's colour). With options.garment "skirt", also
 // the skirt (character.garment), hanging still on the rest pose, its colours in the texture.
 // `wardrobe_key`: the studio's key colour (studio_key_color), kept out of the clothes.
+// With options.body "quadruped", the quadruped (quadruped.h): meshed, skinned and textured the
+// same way, its coat in place of the clothes.
 Character make_procedural_character(const CharacterOptions& options, std::uint64_t seed,
                                     const std::optional<Eigen::Vector3d>& wardrobe_key = {});
 

@@ -1,18 +1,17 @@
 #include "stages/synth/clothing.h"
 
-#include <tbb/parallel_for.h>
-
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <optional>
 #include <vector>
 
+#include "stages/synth/paint.h"
+
 namespace fourd::synth::detail {
 namespace {
 
 using Eigen::Vector3d;
-using Rgb = Eigen::Vector3d;  // linear-ish RGB in [0, 1]
 
 // ---- Atlas layout (u to the right, v up) ----
 // Rows are height above the floor for the torso, legs and arms (arms: length along the arm,
@@ -35,61 +34,6 @@ double top(const BodyModel& body) { return kTopNominal * body.scale; }
 double v_of_z(const BodyModel& body, double z) { return kRow0 + kRowSpan * z / top(body); }
 double z_of_v(const BodyModel& body, double v) { return (v - kRow0) / kRowSpan * top(body); }
 
-// Angle of d around `axis`, measured from `front`, folded to [0, pi].
-double folded_angle(const Vector3d& d, const Vector3d& axis, const Vector3d& front) {
-  const Vector3d q = d - d.dot(axis) * axis;
-  const Vector3d side = axis.cross(front);
-  return std::abs(std::atan2(q.dot(side), q.dot(front)));
-}
-
-// ---- Deterministic noise ----
-std::uint64_t splitmix64(std::uint64_t x) {
-  x += 0x9E3779B97F4A7C15ull;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-  return x ^ (x >> 31);
-}
-
-double lattice(std::int64_t x, std::int64_t y, std::uint64_t seed) {
-  const std::uint64_t h = splitmix64(seed ^ splitmix64(static_cast<std::uint64_t>(x) * 0x632BE59BD9B4E019ull ^
-                                                       static_cast<std::uint64_t>(y)));
-  return static_cast<double>(h >> 11) * (2.0 / 9007199254740992.0) - 1.0;  // [-1, 1)
-}
-
-double fade(double t) { return t * t * t * (t * (t * 6 - 15) + 10); }
-
-// Value noise in [-1, 1] with unit lattice spacing.
-double value_noise(double x, double y, std::uint64_t seed) {
-  const double fx = std::floor(x), fy = std::floor(y);
-  const auto ix = static_cast<std::int64_t>(fx), iy = static_cast<std::int64_t>(fy);
-  const double tx = fade(x - fx), ty = fade(y - fy);
-  const double a = lattice(ix, iy, seed), b = lattice(ix + 1, iy, seed);
-  const double c = lattice(ix, iy + 1, seed), d = lattice(ix + 1, iy + 1, seed);
-  return (a + (b - a) * tx) * (1 - ty) + (c + (d - c) * tx) * ty;
-}
-
-// Three octaves, wavelength `scale` [m] for the first.
-double fbm(double x, double y, double scale, std::uint64_t seed) {
-  double sum = 0, amp = 0.6;
-  for (int o = 0; o < 3; ++o) {
-    sum += amp * value_noise(x / scale, y / scale, seed + static_cast<std::uint64_t>(o) * 7919u);
-    scale *= 0.5;
-    amp *= 0.5;
-  }
-  return sum;
-}
-
-double smoothstep(double e0, double e1, double x) {
-  const double t = std::clamp((x - e0) / (e1 - e0), 0.0, 1.0);
-  return t * t * (3 - 2 * t);
-}
-
-// Additive variation proportional to the colour plus a floor, so that dark cloth keeps
-// texture that stereo can match.
-Rgb vary(const Rgb& c, double n) { return (c + n * (0.6 * c + Rgb::Constant(0.07))).cwiseMax(0.0).cwiseMin(1.0); }
-
-Rgb rgb(int r, int g, int b) { return Rgb(r, g, b) / 255.0; }
-
 // ---- Clothing ----
 struct Outfit {
   Rgb shirt, shirt2, trousers, skin, lips, hair, iris, shoes, sole, belt;
@@ -99,35 +43,6 @@ struct Outfit {
   Rgb skirt, skirt2;         // the skirt's cloth and its print, hem and waistband
 };
 
-// Hue [deg] and saturation (HSV) of a colour.
-double hue_deg(const Rgb& c) {
-  const double hi = c.maxCoeff(), lo = c.minCoeff(), d = hi - lo;
-  if (d <= 0) return 0;
-  double h = c.x() == hi ? (c.y() - c.z()) / d : c.y() == hi ? 2 + (c.z() - c.x()) / d
-                                                             : 4 + (c.x() - c.y()) / d;
-  h *= 60;
-  return h < 0 ? h + 360 : h;
-}
-double saturation(const Rgb& c) { return c.maxCoeff() > 0 ? 1 - c.minCoeff() / c.maxCoeff() : 0; }
-
-// A garment a costume department keeps off a key-colour screen: a saturated colour within 40
-// degrees of hue of the key (navy trousers before a blue screen). Greys, whites and blacks key
-// cleanly against any screen.
-bool near_key(const Rgb& c, const std::optional<Rgb>& key) {
-  if (!key || saturation(c) < 0.3 || saturation(*key) < 0.3) return false;
-  const double dh = std::abs(hue_deg(c) - hue_deg(*key));
-  return std::min(dh, 360 - dh) < 40;
-}
-
-// `palette` without the colours near the key, in order (all of it when none is near).
-template <std::size_t N>
-std::vector<Rgb> wardrobe(const std::array<Rgb, N>& palette, const std::optional<Rgb>& key) {
-  std::vector<Rgb> out;
-  for (const Rgb& c : palette) {
-    if (!near_key(c, key)) out.push_back(c);
-  }
-  return out;
-}
 
 Outfit choose_outfit(std::uint64_t seed, const std::optional<Rgb>& key) {
   // No greens anywhere: the default studio is chroma green. Other keys leave out their own hue.
@@ -376,19 +291,7 @@ Vec2f skirt_uv(double phi, double down) {
 cv::Mat paint_clothing(const BodyModel& body, int size, std::uint64_t seed,
                        const std::optional<Eigen::Vector3d>& key, const std::optional<SkirtChart>& skirt) {
   const Outfit outfit = choose_outfit(seed, key);
-  cv::Mat image(size, size, CV_8UC3);
-  tbb::parallel_for(0, size, [&](int row) {
-    auto* px = image.ptr<cv::Vec3b>(row);
-    const double v = 1.0 - (row + 0.5) / size;
-    for (int col = 0; col < size; ++col) {
-      const double u = (col + 0.5) / size;
-      const Rgb c = paint_texel(body, outfit, u, v, skirt);
-      px[col] = cv::Vec3b(static_cast<std::uint8_t>(std::lround(255 * c.z())),
-                          static_cast<std::uint8_t>(std::lround(255 * c.y())),
-                          static_cast<std::uint8_t>(std::lround(255 * c.x())));
-    }
-  });
-  return image;
+  return paint_image(size, [&](double u, double v) { return paint_texel(body, outfit, u, v, skirt); });
 }
 
 }  // namespace fourd::synth::detail

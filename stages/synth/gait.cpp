@@ -111,18 +111,8 @@ class GaitGenerator {
   }
 
   MotionClip run() const {
-    MotionClip clip;
-    clip.spec = spec_;
-    clip.fps = fps_;
-    clip.cycle_frames = cycle_frames_;
-    for (int f = 0; f < spec_.frames; ++f) {
-      const double t = f / fps_;
-      clip.root.push_back(root(t));
-      const double phi = phase(t);
-      clip.phase.push_back(phi - std::floor(phi));
-      clip.poses.push_back(pose(t).to_pose(rig_.skeleton));
-    }
-    return clip;
+    return sample_cyclic(rig_.skeleton, spec_, fps_, cycle_frames_, [&](double t) { return root(t); },
+                         [&](double t) { return phase(t); }, [&](double t) { return pose(t); });
   }
 
  private:

@@ -42,12 +42,15 @@ void measure_jump(const Skeleton& skeleton, MotionClip& clip) {
                      {"jump_height", top - clip.poses.front().root_position.z()}};
 }
 
+bool is_quadruped_kind(const std::string& kind) { return kind == "trot" || kind == "gallop"; }
+
 }  // namespace
 
 void MotionSpec::check() const {
   const bool cyclic = kind == "walk" || kind == "run" || kind == "turn";
-  if (!cyclic && kind != "jump" && kind != "reach" && kind != "dance") {
-    throw ConfigError(fmt::format("take {}: kind '{}' is not one of walk, run, turn, jump, reach, dance", take, kind));
+  if (!cyclic && kind != "jump" && kind != "reach" && kind != "dance" && !is_quadruped_kind(kind)) {
+    throw ConfigError(fmt::format("take {}: kind '{}' is not one of walk, run, turn, jump, reach, dance (a human's) "
+                                  "or walk, trot, gallop (a quadruped's)", take, kind));
   }
   if (reach_target.size() != 3) {
     throw ConfigError(fmt::format("take {}: reach_target needs 3 values (x, y, z), not {}", take, reach_target.size()));
@@ -71,6 +74,19 @@ void MotionSpec::check() const {
 MotionClip generate_motion(const Skeleton& skeleton, const MotionSpec& spec, double fps) {
   spec.check();
   if (!(fps > 0)) throw ConfigError(fmt::format("take {}: fps must be positive, not {}", spec.take, fps));
+  if (is_quadruped(skeleton)) {
+    if (spec.kind != "walk" && !is_quadruped_kind(spec.kind)) {
+      throw ConfigError(fmt::format("take {}: a quadruped (character.body quadruped) performs walk, trot or gallop, "
+                                    "not '{}'", spec.take, spec.kind));
+    }
+    MotionClip clip = detail::generate_quadruped_gait(skeleton, spec, fps);
+    measure_cyclic(clip);
+    return clip;
+  }
+  if (is_quadruped_kind(spec.kind)) {
+    throw ConfigError(fmt::format("take {}: '{}' is a quadruped's gait (character.body quadruped); the human "
+                                  "performer performs walk, run, turn, jump, reach or dance", spec.take, spec.kind));
+  }
   const detail::Rig rig(skeleton);
   if (spec.kind == "jump") {
     MotionClip clip = detail::generate_jump(rig, spec, fps);
@@ -112,6 +128,23 @@ MotionClip sample_one_shot(const Rig& rig, const MotionSpec& spec, double fps,
     clip.root.push_back(root(t));
     clip.phase.push_back(static_cast<double>(f) / spec.frames);
     clip.poses.push_back(pose(t).to_pose(rig.skeleton));
+  }
+  return clip;
+}
+
+MotionClip sample_cyclic(const Skeleton& skeleton, const MotionSpec& spec, double fps, double cycle_frames,
+                         const std::function<RootState(double)>& root, const std::function<double(double)>& phase,
+                         const std::function<WorldPose(double)>& pose) {
+  MotionClip clip;
+  clip.spec = spec;
+  clip.fps = fps;
+  clip.cycle_frames = cycle_frames;
+  for (int f = 0; f < spec.frames; ++f) {
+    const double t = f / fps;
+    clip.root.push_back(root(t));
+    const double phi = phase(t);
+    clip.phase.push_back(phi - std::floor(phi));
+    clip.poses.push_back(pose(t).to_pose(skeleton));
   }
   return clip;
 }

@@ -13,9 +13,11 @@ namespace fourd::synth {
 // One take of the synthetic database. Only the fields of its kind are used.
 struct MotionSpec {
   std::string take;       // take name, e.g. "walk_slow"
-  std::string kind;       // walk | run | turn | jump | reach | dance
+  // walk | run | turn | jump | reach | dance (the human performer); walk | trot | gallop (the
+  // quadruped, character.body quadruped)
+  std::string kind;
   int frames = 30;        // number of frames to generate
-  double speed = 1.2;     // walk/run/turn: ground speed [m/s]
+  double speed = 1.2;     // walk/run/turn/trot/gallop: ground speed [m/s]
   // turn: heading change [deg/s], + = left (counter-clockwise from above); dance: the spin's
   // heading change over the whole take, per second of the take
   double turn_rate = 0;
@@ -30,9 +32,9 @@ struct MotionSpec {
   template <class V>
   void visit(V& v) {
     v("take", take, "take name (folder under capture/)");
-    v("kind", kind, "walk | run | turn | jump | reach | dance");
+    v("kind", kind, "walk | run | turn | jump | reach | dance; a quadruped's: walk | trot | gallop");
     v("frames", frames, "number of frames", Range{2, 100000});
-    v("speed", speed, "walk/run/turn ground speed [m/s]", Range{0, 10});
+    v("speed", speed, "walk/run/turn/trot/gallop ground speed [m/s]", Range{0, 20});
     v("turn_rate", turn_rate,
       "turn: heading change [deg/s], + = left; dance: the spin's, over the whole take",
       Range{-360, 360});
@@ -65,7 +67,7 @@ struct MotionClip {
   double cycle_frames = 0;          // cyclic motions: frames per gait cycle (0 otherwise)
   // Parameters measured on the generated motion itself (ground truth for validation), e.g.
   // {"speed": 1.21, "direction_deg_per_s": 0} or {"jump_length": 1.2, "jump_height": 0.3}.
-  //   walk, run, turn: speed [m/s] (root path length over whole gait cycles / their
+  //   walk, run, turn, trot, gallop: speed [m/s] (root path length over whole gait cycles / their
   //     duration), direction_deg_per_s (heading change over whole cycles / duration),
   //     cycle_s (gait cycle duration)
   //   jump: jump_length [m] (horizontal distance between the feet's stances before and after),
@@ -78,8 +80,10 @@ struct MotionClip {
 };
 
 // The motion of `spec` for the procedural performer's skeleton (joint names of
-// make_procedural_character). Deterministic. Throws ConfigError for a spec that cannot be
-// performed (unknown kind, too few frames for a one-shot motion, an unreachable target).
+// make_procedural_character): the human's kinds for the human, walk, trot and gallop for the
+// quadruped. Deterministic. Throws ConfigError for a spec that cannot be performed (unknown
+// kind, a kind of the other body, too few frames for a one-shot motion, an unreachable target,
+// a gait's speed out of its range).
 MotionClip generate_motion(const Skeleton& skeleton, const MotionSpec& spec, double fps);
 
 // Centre of the right palm (the point that reach motions bring to reach_target) for a pose's

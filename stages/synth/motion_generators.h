@@ -16,6 +16,9 @@ MotionClip generate_reach(const Rig& rig, const MotionSpec& spec, double fps);
 // dance: steps on the spot with wide arm swings, a spin, and back to standing.
 MotionClip generate_dance(const Rig& rig, const MotionSpec& spec, double fps);
 
+// walk, trot and gallop of the quadruped (character.body quadruped; quadruped_gait.cpp).
+MotionClip generate_quadruped_gait(const Skeleton& skeleton, const MotionSpec& spec, double fps);
+
 // The root's state at frame 0 of a take.
 RootState start_state(const MotionSpec& spec);
 // The frames of a one-shot take (spec.frames at `fps`): the root and the pose at each frame's
@@ -23,6 +26,11 @@ RootState start_state(const MotionSpec& spec);
 MotionClip sample_one_shot(const Rig& rig, const MotionSpec& spec, double fps,
                            const std::function<RootState(double)>& root,
                            const std::function<WorldPose(double)>& pose);
+// The frames of a cyclic take (spec.frames at `fps`): the root and the pose at each frame's
+// time [s], the phase its gait phase's fraction; cycle_frames as given.
+MotionClip sample_cyclic(const Skeleton& skeleton, const MotionSpec& spec, double fps, double cycle_frames,
+                         const std::function<RootState(double)>& root, const std::function<double(double)>& phase,
+                         const std::function<WorldPose(double)>& pose);
 // Throws ConfigError when the take has fewer frames than `seconds` of motion need at `fps`.
 void require_frames(const MotionSpec& spec, double seconds, double fps);
 

@@ -22,14 +22,6 @@ int require(const Skeleton& skeleton, const std::string& name) {
   return j;
 }
 
-// Rotation taking the orthonormal frame (a, b, a x b) to (c, d, c x d).
-Matrix3d frame_rotation(const Vector3d& a, const Vector3d& b, const Vector3d& c, const Vector3d& d) {
-  Matrix3d from, to;
-  from << a, b, a.cross(b);
-  to << c, d, c.cross(d);
-  return to * from.transpose();
-}
-
 // Any unit vector perpendicular to u.
 Vector3d perpendicular(const Vector3d& u) {
   const Vector3d other = std::abs(u.x()) < 0.9 ? Vector3d::UnitX() : Vector3d::UnitY();
@@ -53,6 +45,13 @@ Matrix3d ankle_range_turn(const Vector3d& up, const Vector3d& forward) {
 }
 
 }  // namespace
+
+Matrix3d frame_rotation(const Vector3d& a, const Vector3d& b, const Vector3d& c, const Vector3d& d) {
+  Matrix3d from, to;
+  from << a, b, a.cross(b);
+  to << c, d, c.cross(d);
+  return to * from.transpose();
+}
 
 Matrix3d rot_x(double a) { return Eigen::AngleAxisd(a, Vector3d::UnitX()).toRotationMatrix(); }
 Matrix3d rot_y(double a) { return Eigen::AngleAxisd(a, Vector3d::UnitY()).toRotationMatrix(); }

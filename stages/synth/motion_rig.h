@@ -21,6 +21,9 @@ Matrix3d rot_x(double angle);
 Matrix3d rot_y(double angle);  // positive tilts +z towards +x (a forward lean / the toes down)
 Matrix3d rot_z(double angle);  // heading: positive turns left
 
+// Rotation taking the orthonormal frame (a, b, a x b) to (c, d, c x d).
+Matrix3d frame_rotation(const Vector3d& a, const Vector3d& b, const Vector3d& c, const Vector3d& d);
+
 double smoothstep01(double t);  // 3t^2 - 2t^3 on [0, 1], clamped
 double minimum_jerk(double t);  // 10t^3 - 15t^4 + 6t^5 on [0, 1], clamped
 

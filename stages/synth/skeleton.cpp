@@ -13,6 +13,8 @@ int Skeleton::find(const std::string& name) const {
   return -1;
 }
 
+bool is_quadruped(const Skeleton& skeleton) { return skeleton.find("front_hoof_l") >= 0; }
+
 Pose rest_pose(const Skeleton& skeleton) {
   Pose pose;
   if (skeleton.size() > 0) pose.root_position = skeleton.rest_offsets[0];

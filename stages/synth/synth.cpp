@@ -208,7 +208,8 @@ void run_synth(const Session& session, const StageArgs& args) {
                                                   studio_key_color(options.studio));
   const Mesh surface = rest_surface(character);
   const double s = options.scale;
-  log::info("performer: {} vertices, {} triangles, {} joints, height {:.3g} m{}{} ({:.1f} s)",
+  log::info("performer{}: {} vertices, {} triangles, {} joints, height {:.3g} m{}{} ({:.1f} s)",
+            options.character.body == "human" ? "" : " (" + options.character.body + ")",
             surface.num_vertices(), surface.num_triangles(), character.skeleton.size(),
             character.height * s, character.garment ? ", wearing a skirt" : "",
             s == 1 ? std::string() : fmt::format(" (the scene at scale {:g})", s), timer.seconds());
@@ -249,6 +250,9 @@ void run_synth(const Session& session, const StageArgs& args) {
     YAML::Node used = to_yaml(options);
     if (options.character.garment == "none") {
       for (const char* key : CharacterOptions::kGarmentKeys) used["character"].remove(key);
+    }
+    if (options.character.body == "human") {
+      for (const char* key : CharacterOptions::kBodyKeys) used["character"].remove(key);
     }
     YAML::Emitter out;
     out << used;

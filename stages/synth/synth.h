@@ -38,6 +38,8 @@ struct SynthOptions {
   RigOptions rig;
   StudioOptions studio;
   CalibrationNoise calibration_noise;
+  // A tuned value, not an option: each take's ground path centred on the capture volume (its
+  // start_position ignored); false starts each take at its start_position.
   bool center_takes = true;
   // Size of the whole scene relative to the one described: performer, motion, rig and studio
   // together, as a studio filming a smaller subject puts its cameras closer. Pinhole images are
@@ -54,8 +56,6 @@ struct SynthOptions {
     v("rig", rig, "camera rig");
     v("studio", studio, "backdrop, noise, anti-aliasing");
     v("calibration_noise", calibration_noise, "error added to the written calibration");
-    v("center_takes", center_takes,
-      "shift each take so its ground path is centred on the volume (ignores start_position)");
     v("scale", scale,
       "size of the whole scene (performer, motion, rig) relative to the one described",
       Range{1e-3, 1e3});

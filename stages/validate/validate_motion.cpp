@@ -79,6 +79,31 @@ void class_phase_errors(const Session& session, const json& warp, PhaseErrors* e
                         frames.size(), local.mean(), local.max);
 }
 
+// A cyclic class: every take's period as timewarp found it (the cycle it loops on) against the
+// true gait cycle, and that cycle's closure error. Adds a table row per take to `table`. A take
+// whose summary has no cycle (written before timewarp recorded one) is left out.
+struct PeriodErrors {
+  double worst = 0, worst_closure_mm = 0;
+  int takes = 0;
+};
+void class_period_errors(const Session& session, const json& warp, PeriodErrors* errors, std::string* table) {
+  if (!warp.at("cyclic").get<bool>()) return;
+  for (const json& take : warp.at("takes")) {
+    if (!take.contains("cycle_frames")) continue;
+    const std::string name = take.at("take").get<std::string>();
+    const json truth = read_json(session.ground_truth_dir() / "takes" / (name + ".json"));
+    const double true_period = truth.at("cycle_frames").get<double>();
+    const double found = take.at("cycle_frames").get<double>();
+    const double closure_mm = 1000 * take.at("closure_rms_m").get<double>();
+    const double error = std::abs(found - true_period);
+    errors->worst = std::max(errors->worst, error);
+    errors->worst_closure_mm = std::max(errors->worst_closure_mm, closure_mm);
+    ++errors->takes;
+    *table += fmt::format("| {} | {} | {:.3f} | {:.3f} | {:.3f} | {:.1f} | {:.3f} |\n", warp.at("class").get<std::string>(),
+                          name, true_period, found, error, closure_mm, take.at("closure_ratio").get<double>());
+  }
+}
+
 }  // namespace
 
 StageReport validate_timewarp(const ValidationContext& ctx) {
@@ -90,23 +115,39 @@ StageReport validate_timewarp(const ValidationContext& ctx) {
   }
   report.present = true;
   report.summary = "Phase of every frame of every take after time-warp registration, against the "
-                   "ground-truth phase (frames of the take's cycle, or of the one-shot take).";
+                   "ground-truth phase (frames of the take's cycle, or of the one-shot take); the "
+                   "period of every cyclic take's cycle against the true gait cycle, and its "
+                   "closure error.";
   for (const RunFolder& run : runs) {
     PhaseErrors errors;
+    PeriodErrors periods;
     std::string table =
         fmt::format("**{}** inputs:\n\n| class | kind | frames | mean error [frames] | max "
                     "[frames] |\n|---|---|---:|---:|---:|\n",
                     run.label);
+    std::string period_table =
+        "| class | take | true period [frames] | found | error | closure [mm] | closure ratio |\n"
+        "|---|---|---:|---:|---:|---:|---:|\n";
     for (const MotionClassConfig& motion : ctx.session.config().motions) {
       const fs::path file = run.dir / (motion.name + ".json");
       if (!fs::exists(file)) continue;
-      class_phase_errors(ctx.session, read_json(file), &errors, &table);
+      const json warp = read_json(file);
+      class_phase_errors(ctx.session, warp, &errors, &table);
+      class_period_errors(ctx.session, warp, &periods, &period_table);
     }
     report.details += table + "\n";
     report.metrics.push_back({"phase_error_frames", errors.mean(), run.input,
                               "mean phase error over every frame [frames]"});
     report.metrics.push_back({"phase_error_max_frames", errors.max, run.input,
                               "largest phase error [frames]"});
+    if (periods.takes > 0) {
+      report.details += fmt::format("Cycle periods, {} inputs (the cycle each take loops on):\n\n", run.label) +
+                        period_table + "\n";
+      report.metrics.push_back({"period_error_frames", periods.worst, run.input,
+                                "largest |found - true| gait cycle over the cyclic takes [frames]"});
+      report.metrics.push_back({"closure_rms_max_mm", periods.worst_closure_mm, run.input,
+                                "largest closure error of a take's cycle [mm]"});
+    }
   }
   return report;
 }

@@ -7,12 +7,15 @@
 
 #include "pipeline/core/error.h"
 #include "tests/synth/debug_render.h"
+#include "tests/synth/mesh_checks.h"
 #include "tests/synth/motion_specs.h"
 
 namespace fourd::synth {
 namespace {
 
 using test::dance;
+using test::lowest;
+using test::lowest_vertex;
 using test::jump;
 using test::make_spec;
 using test::reach;
@@ -68,12 +71,6 @@ std::vector<Mesh> skin_all(const MotionClip& clip) {
   return meshes;
 }
 
-float lowest(const Mesh& mesh, const std::vector<int>& vertices) {
-  float z = std::numeric_limits<float>::max();
-  for (int v : vertices) z = std::min(z, mesh.positions[static_cast<std::size_t>(v)].z());
-  return z;
-}
-
 constexpr float kContact = 0.005f;  // a foot touches the floor when its lowest point is this low
 
 // For each run of frames in which a foot touches the floor: some point of the sole that is on
@@ -117,14 +114,6 @@ int flight_frames(const std::vector<Mesh>& meshes) {
   int count = 0;
   for (const Mesh& m : meshes) count += lowest(m, left) > kContact && lowest(m, right) > kContact;
   return count;
-}
-
-float lowest_vertex(const std::vector<Mesh>& meshes) {
-  float z = std::numeric_limits<float>::max();
-  for (const Mesh& m : meshes) {
-    for (const Vec3f& p : m.positions) z = std::min(z, p.z());
-  }
-  return z;
 }
 
 void expect_continuous(const MotionClip& clip, double max_step) {

@@ -87,6 +87,34 @@ TEST_F(ValidateMotion, PhaseErrorIgnoresTheCycleOriginAndMeasuresFrames) {
   EXPECT_GT(metric(off, "phase_error_frames")->value, 0.5 / 33 * 0.9);
 }
 
+// The period of each cyclic take's cycle against the true gait cycle (a fraction of frames, as
+// the quadruped's), the worst over the takes; the worst closure error beside it.
+TEST_F(ValidateMotion, PeriodErrorIsTheWorstTakesAgainstTheTrueCycle) {
+  truth("a", 30, 10.8);
+  truth("b", 30, 9.6);
+  truth("c", 9, 0);
+  std::vector<double> t(30, 0.0), tc(9, 0.0);
+  warp("loco", true, {{"a", t}, {"b", t}});
+  warp("hop", false, {{"c", tc}});
+  const Session session = Session::open(root_);
+  ValidateOptions options;
+  // Without cycles in the summary: no period metric.
+  EXPECT_EQ(metric(validate_timewarp({session, options, root_}), "period_error_frames"), nullptr);
+  json j = read_json(root_ / "timewarp" / "loco.json");
+  const double found[2] = {10.9, 9.0}, closure[2] = {0.004, 0.012};
+  for (int k = 0; k < 2; ++k) {
+    j["takes"][k]["cycle_frames"] = found[k];
+    j["takes"][k]["closure_rms_m"] = closure[k];
+    j["takes"][k]["closure_ratio"] = 0.1;
+  }
+  write_file_atomic(root_ / "timewarp" / "loco.json", j.dump());
+  const StageReport report = validate_timewarp({session, options, root_});
+  ASSERT_NE(metric(report, "period_error_frames"), nullptr);
+  EXPECT_NEAR(metric(report, "period_error_frames")->value, 0.6, 1e-9);  // b: 9.0 for 9.6
+  EXPECT_NEAR(metric(report, "closure_rms_max_mm")->value, 12, 1e-9);
+  EXPECT_NE(report.details.find("| loco | b | 9.600 | 9.000 | 0.600 |"), std::string::npos) << report.details;
+}
+
 TEST_F(ValidateMotion, FrameCountsThatDisagreeWithTheTruthAreAnError) {
   truth("a", 12, 10);
   truth("b", 12, 10);
