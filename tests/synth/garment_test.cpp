@@ -200,7 +200,9 @@ TEST(Garment, ShellDoesNotSelfIntersectWhereTheClothHangs) {
                            meshes[f].positions.end());
     shell.triangles = c.garment->rest.triangles;
     const bool crosses = has_self_intersections(shell);
-    if (f < 8) EXPECT_FALSE(crosses) << "frame " << f;
+    if (f < 8) {
+      EXPECT_FALSE(crosses) << "frame " << f;
+    }
     crossing += crosses;
   }
   printf("the shell passes through itself in %d of %zu frames\n", crossing, meshes.size());

@@ -277,9 +277,15 @@ TEST(Quadruped, HoovesPlantedInStanceNeverBelowTheFloor) {
       fewest = std::min(fewest, static_cast<int>(d[0] + d[1] + d[2] + d[3]));
       diagonal_apart += (d[0] != d[3]) + (d[1] != d[2]);
     }
-    if (spec.kind == "walk") EXPECT_GE(fewest, 2);
-    if (spec.kind == "trot") EXPECT_LT(diagonal_apart, n / 10);
-    if (spec.kind == "gallop") EXPECT_EQ(fewest, 0);
+    if (spec.kind == "walk") {
+      EXPECT_GE(fewest, 2);
+    }
+    if (spec.kind == "trot") {
+      EXPECT_LT(diagonal_apart, n / 10);
+    }
+    if (spec.kind == "gallop") {
+      EXPECT_EQ(fewest, 0);
+    }
   }
 }
 
@@ -307,7 +313,9 @@ TEST(Quadruped, BodyBobsAndPitches) {
     EXPECT_LT(pitch_hi - pitch_lo, 25.0);
     // The speed is the spec's.
     for (const auto& [name, value] : clip.parameters) {
-      if (name == "speed") EXPECT_NEAR(value, spec.speed, 1e-6);
+      if (name == "speed") {
+        EXPECT_NEAR(value, spec.speed, 1e-6);
+      }
     }
   }
 }
