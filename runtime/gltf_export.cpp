@@ -352,37 +352,11 @@ MeshClip bake_control_script(const Asset& asset, const ControlScript& script,
   return clip;
 }
 
-void write_mesh_animation_glb(const std::filesystem::path& path, const MeshAnimation& animation,
-                              const GlbOptions& options) {
-  const std::string file = path.string();
-  options.check();
-  check_animation(file, animation);
-  const Mesh& base = animation.base;
-  const bool textured = !base.uvs.empty() && !animation.texture_png.empty();
-  const bool compress = options.compress;
+namespace {
 
-  tinygltf::Model model;
-  model.asset.version = "2.0";
-  model.asset.generator = "fourd-export";
-  gltf::BufferWriter buffer(model);
-
-  // The template, with unit normals (glTF requires them).
-  Mesh unit_base = base;
-  for (Vec3f& n : unit_base.normals) n = unit_normal(n);
-  const std::vector<Vec3f>& base_normals = unit_base.normals;
-  gltf::ExportVertices vertices;
-  tinygltf::Primitive primitive;
-  PositionGrid grid;
-  if (compress) {
-    vertices = glb_vertices(unit_base, options);
-    grid = position_grid(animation, vertices.source, options.position_step_mm);
-    primitive = add_quantised_primitive(buffer, unit_base, textured, vertices, grid);
-    model.extensionsUsed.push_back("KHR_mesh_quantization");
-    model.extensionsRequired.push_back("KHR_mesh_quantization");
-  } else {
-    primitive = gltf::add_mesh_primitive(buffer, unit_base, textured, &vertices);
-  }
-
+// The performer's material, with the animation's texture when it has one.
+void add_material(tinygltf::Model& model, gltf::BufferWriter& buffer, const std::string& file,
+                  const MeshAnimation& animation, const GlbOptions& options, bool textured) {
   tinygltf::Material material;
   material.name = "performer";
   material.pbrMetallicRoughness.metallicFactor = 0;
@@ -403,9 +377,16 @@ void write_mesh_animation_glb(const std::filesystem::path& path, const MeshAnima
     material.pbrMetallicRoughness.baseColorTexture.index = texture;
   }
   model.materials.push_back(material);
-  primitive.material = 0;
+}
 
-  // One morph target per frame of every clip: its displacement from the template.
+// One morph target per frame of every clip: its displacement from the template (`base`, with
+// `base_normals` its unit normals), quantised on `grid` when compressing. Returns their names.
+tinygltf::Value::Array add_morph_targets(gltf::BufferWriter& buffer, const MeshAnimation& animation,
+                                         const std::vector<Vec3f>& base_normals,
+                                         const gltf::ExportVertices& vertices,
+                                         const PositionGrid& grid, bool compress,
+                                         tinygltf::Primitive& primitive) {
+  const Mesh& base = animation.base;
   tinygltf::Value::Array target_names;
   const std::size_t n = vertices.source.size();
   for (const MeshClip& clip : animation.clips) {
@@ -440,22 +421,15 @@ void write_mesh_animation_glb(const std::filesystem::path& path, const MeshAnima
       target_names.emplace_back(fmt::format("{}.{:04d}", clip.name, f));
     }
   }
-  const std::size_t num_targets = primitive.targets.size();
+  return target_names;
+}
 
-  tinygltf::Mesh mesh;
-  mesh.name = animation.name;
-  mesh.primitives.push_back(std::move(primitive));
-  mesh.weights.assign(num_targets, 0.0);
-  // Shape key names for Blender and three.js (the convention both read).
-  tinygltf::Value::Object extras;
-  extras["targetNames"] = tinygltf::Value(std::move(target_names));
-  mesh.extras = tinygltf::Value(std::move(extras));
-  model.meshes.push_back(std::move(mesh));
-
-  // The root motion animates node 0; the mesh hangs on it, or (compressed) on a static child
-  // node that dequantises the positions.
+// The root motion animates node 0; the mesh hangs on it, or (compressed) on a static child
+// node that dequantises the positions. Adds the scene too; returns the mesh's node.
+int add_nodes(tinygltf::Model& model, const std::string& name, const PositionGrid& grid,
+              bool compress) {
   tinygltf::Node node;
-  node.name = animation.name.empty() ? "character" : animation.name;
+  node.name = name.empty() ? "character" : name;
   int mesh_node = 0;
   if (compress) {
     node.children = {1};
@@ -476,8 +450,14 @@ void write_mesh_animation_glb(const std::filesystem::path& path, const MeshAnima
   scene.nodes = {0};
   model.scenes.push_back(scene);
   model.defaultScene = 0;
+  return mesh_node;
+}
 
-  // One animation per clip: one-hot weights, the root's translation and heading.
+// One animation per clip: one-hot weights over the `num_targets` morph targets, the root's
+// translation and heading.
+void add_clip_animations(tinygltf::Model& model, gltf::BufferWriter& buffer,
+                         const MeshAnimation& animation, std::size_t num_targets, int mesh_node,
+                         bool compress) {
   std::size_t first_target = 0;
   for (const MeshClip& clip : animation.clips) {
     const int frames = clip.num_frames();
@@ -507,6 +487,57 @@ void write_mesh_animation_glb(const std::filesystem::path& path, const MeshAnima
     model.animations.push_back(std::move(anim));
     first_target += frames;
   }
+}
+
+}  // namespace
+
+void write_mesh_animation_glb(const std::filesystem::path& path, const MeshAnimation& animation,
+                              const GlbOptions& options) {
+  const std::string file = path.string();
+  options.check();
+  check_animation(file, animation);
+  const Mesh& base = animation.base;
+  const bool textured = !base.uvs.empty() && !animation.texture_png.empty();
+  const bool compress = options.compress;
+
+  tinygltf::Model model;
+  model.asset.version = "2.0";
+  model.asset.generator = "fourd-export";
+  gltf::BufferWriter buffer(model);
+
+  // The template, with unit normals (glTF requires them).
+  Mesh unit_base = base;
+  for (Vec3f& n : unit_base.normals) n = unit_normal(n);
+  gltf::ExportVertices vertices;
+  tinygltf::Primitive primitive;
+  PositionGrid grid;
+  if (compress) {
+    vertices = glb_vertices(unit_base, options);
+    grid = position_grid(animation, vertices.source, options.position_step_mm);
+    primitive = add_quantised_primitive(buffer, unit_base, textured, vertices, grid);
+    model.extensionsUsed.push_back("KHR_mesh_quantization");
+    model.extensionsRequired.push_back("KHR_mesh_quantization");
+  } else {
+    primitive = gltf::add_mesh_primitive(buffer, unit_base, textured, &vertices);
+  }
+  add_material(model, buffer, file, animation, options, textured);
+  primitive.material = 0;
+  tinygltf::Value::Array target_names =
+      add_morph_targets(buffer, animation, unit_base.normals, vertices, grid, compress, primitive);
+  const std::size_t num_targets = primitive.targets.size();
+
+  tinygltf::Mesh mesh;
+  mesh.name = animation.name;
+  mesh.primitives.push_back(std::move(primitive));
+  mesh.weights.assign(num_targets, 0.0);
+  // Shape key names for Blender and three.js (the convention both read).
+  tinygltf::Value::Object extras;
+  extras["targetNames"] = tinygltf::Value(std::move(target_names));
+  mesh.extras = tinygltf::Value(std::move(extras));
+  model.meshes.push_back(std::move(mesh));
+
+  const int mesh_node = add_nodes(model, animation.name, grid, compress);
+  add_clip_animations(model, buffer, animation, num_targets, mesh_node, compress);
   gltf::write_glb(path, model, buffer.meshopt_views());
 }
 

@@ -1163,14 +1163,10 @@ json diagnosis_json(const FrameDiagnosis& d, const TemplateRegions& regions) {
           {"cues", cues}};
 }
 
-// The finish job: merges the branch jobs' results, re-parents and keeps what failed, runs the
-// baseline and writes the reports.
-void run_finish_job(const fs::path& out, const StageArgs& args, const AlignOptions& options,
-                    const std::string& options_header) {
-  log::Timer timer;
-  Registrations reg(0);
-  Mesh template_mesh;
-  Plan plan = load_plan(out, options, &reg, &template_mesh);
+// The branch jobs' results read into `reg` (and their frames' errors into `plan`). Returns the
+// jobs' wall time, the tree job's included.
+double read_branch_results(const fs::path& out, Plan& plan, Registrations& reg,
+                           const Mesh& template_mesh) {
   double job_seconds = plan.seconds;
   for (int b = 0; b < plan.branches; ++b) {
     const fs::path file = branch_file(out, b);
@@ -1186,13 +1182,16 @@ void run_finish_job(const fs::path& out, const StageArgs& args, const AlignOptio
     read_results(r, plan, reg, static_cast<int>(template_mesh.num_vertices()));
     r.expect_end();
   }
-  const TemplateModel model = build_template_model(template_mesh, options.registration);
-  std::vector<FrameData>& frames = plan.frames;
+  return job_seconds;
+}
+
+// The tree's outcome flagged on every frame; throws when the template does not fit its own
+// frame (the root).
+void flag_tree_outcome(Plan& plan, const Registrations& reg, const AlignOptions& options) {
   const ShapeTree& tree = plan.tree;
   const int n = static_cast<int>(plan.usable.size());
-  const int root = plan.usable[tree.root];
   for (int k = 0; k < n; ++k) {
-    FrameStatus& s = frames[plan.usable[k]].status;
+    FrameStatus& s = plan.frames[plan.usable[k]].status;
     if (tree.parent[k] >= 0 && tree.edge_cost[k] > options.far_edge_factor * plan.median_edge) {
       s.flags.push_back("far_from_parent");
     }
@@ -1200,13 +1199,17 @@ void run_finish_job(const fs::path& out, const StageArgs& args, const AlignOptio
     if (!reg.attempted[k]) s.flags.push_back("orphaned");
   }
   if (!reg.aligned[tree.root]) {
+    const FrameStatus& root = plan.frames[plan.usable[tree.root]].status;
     throw SolverError(fmt::format("align: the template does not fit its own frame {}: {}",
-                                  frame_label(frames[root].status), frames[root].status.error));
+                                  frame_label(root), root.error));
   }
+}
 
-  // 4. Re-parenting: every frame not aligned yet (its fit failed, or its parent's did) is
-  //    registered from the most similar aligned frame it has not tried, best pairs first.
-  TreeRegistration registration(model, plan, reg, options, out);
+// 4. Re-parenting: every frame not aligned yet (its fit failed, or its parent's did) is
+//    registered from the most similar aligned frame it has not tried, best pairs first.
+void reparent_unaligned(Plan& plan, const Registrations& reg, TreeRegistration& registration,
+                        const AlignOptions& options) {
+  const int n = static_cast<int>(plan.usable.size());
   for (;;) {
     int best_k = -1, best_p = -1;
     double best = std::numeric_limits<double>::infinity();
@@ -1223,35 +1226,43 @@ void run_finish_job(const fs::path& out, const StageArgs& args, const AlignOptio
       }
     }
     if (best_k < 0) break;
-    FrameStatus& s = frames[plan.usable[best_k]].status;
+    FrameStatus& s = plan.frames[plan.usable[best_k]].status;
     if (registration.attempt(best_k, best_p)) {
       s.flags.push_back("reparented");
-      log::info("{}: re-parented to {}", frame_label(s), frame_label(frames[plan.usable[best_p]].status));
+      log::info("{}: re-parented to {}", frame_label(s),
+                frame_label(plan.frames[plan.usable[best_p]].status));
     }
   }
+}
 
-  // 4b. Outlier fits.
-  if (options.outlier_rms_factor > 0) refit_outliers(plan, reg, registration, options);
-
-  // 5. Frames whose every attempt failed: by default their best fit is kept and flagged (the
-  //    motion stays complete for the stages after this one, and the report and validation show
-  //    the frame's error); with keep_failed_fits off they are excluded.
-  std::vector<char> kept(n, 0);
+// 5. Frames whose every attempt failed: by default their best fit is kept and flagged (the
+//    motion stays complete for the stages after this one, and the report and validation show
+//    the frame's error); with keep_failed_fits off they are excluded. Fills `kept` (per
+//    database frame) and returns the frame files written.
+std::set<fs::path> keep_failed_fits(Plan& plan, const Registrations& reg,
+                                    TreeRegistration& registration, const AlignOptions& options,
+                                    std::vector<char>& kept) {
+  const int n = static_cast<int>(plan.usable.size());
+  kept.assign(n, 0);
   std::set<fs::path> written;
   for (int k = 0; k < n; ++k) {
     if (reg.aligned[k]) {
       written.insert(registration.frame_file(k));
     } else if (options.keep_failed_fits && reg.has_fit[k]) {
       kept[k] = 1;
-      frames[plan.usable[k]].status.flags.push_back("kept_failed_fit");
+      plan.frames[plan.usable[k]].status.flags.push_back("kept_failed_fit");
       registration.write_frame(k);
       written.insert(registration.frame_file(k));
     }
   }
+  return written;
+}
 
-  // Statuses for the report.
+// Every database frame's status for the report: aligned (or kept), its fit and its parent.
+void set_statuses(Plan& plan, const Registrations& reg, const std::vector<char>& kept) {
+  const int n = static_cast<int>(plan.usable.size());
   for (int k = 0; k < n; ++k) {
-    FrameStatus& s = frames[plan.usable[k]].status;
+    FrameStatus& s = plan.frames[plan.usable[k]].status;
     s.aligned = reg.aligned[k] || kept[k];
     s.fit = reg.fits[k].stats;
     s.seconds = reg.fits[k].seconds;
@@ -1263,21 +1274,18 @@ void run_finish_job(const fs::path& out, const StageArgs& args, const AlignOptio
       s.error = "its parent could not be aligned and no other parent fitted";
     }
   }
-  // 5b. Self-diagnosis: every fit measured patch by patch; a frame with a patch over a limit is
-  //     registered again from other parents, and if still wrong flagged, the patch named.
-  std::vector<char> has_result(n, 0);
-  for (int k = 0; k < n; ++k) has_result[k] = reg.aligned[k] || kept[k];
-  Diagnoser diagnoses(model, plan, reg, has_result, options);
-  if (options.retry_diagnosed) retry_wrong_frames(plan, reg, registration, diagnoses, options);
+}
+
+// The frames diagnosed wrong flagged, each with a warning naming its worst patch. Returns
+// how many.
+int flag_diagnosed(Plan& plan, const Diagnoser& diagnoses) {
   const TemplateRegions& regions = diagnoses.regions();
-  const DiagnosisLimits& limits = diagnoses.limits();
-  std::vector<int> database_index(frames.size(), -1);
+  const int n = static_cast<int>(plan.usable.size());
   int diagnosed_wrong = 0;
   for (int k = 0; k < n; ++k) {
-    database_index[plan.usable[k]] = k;
     const FrameDiagnosis& d = diagnoses[k];
     if (!d.done || d.verdicts.empty()) continue;
-    FrameStatus& s = frames[plan.usable[k]].status;
+    FrameStatus& s = plan.frames[plan.usable[k]].status;
     s.flags.push_back("diagnosed_wrong");
     ++diagnosed_wrong;
     const RegionVerdict& v = d.verdicts.front();
@@ -1286,8 +1294,15 @@ void run_finish_job(const fs::path& out, const StageArgs& args, const AlignOptio
               regions.names[v.region], v.cue, v.value, v.limit,
               d.verdicts.size() > 1 ? fmt::format(" (and {} more)", d.verdicts.size() - 1) : "");
   }
-  for (int k = 0; k < n; ++k) {  // depth along the parents actually used
-    FrameStatus& s = frames[plan.usable[k]].status;
+  return diagnosed_wrong;
+}
+
+// Every aligned frame's depth along the parents actually used; the excluded and flagged
+// frames logged.
+void set_depths(std::vector<FrameData>& frames, const std::vector<int>& usable) {
+  const int n = static_cast<int>(usable.size());
+  for (int k = 0; k < n; ++k) {
+    FrameStatus& s = frames[usable[k]].status;
     int depth = 0;
     for (int p = s.parent; p >= 0 && depth <= n; p = frames[p].status.parent) ++depth;
     if (s.aligned) s.depth = depth;
@@ -1299,6 +1314,111 @@ void run_finish_job(const fs::path& out, const StageArgs& args, const AlignOptio
       log::warn("{}: kept, flagged - {}", frame_label(f.status), f.status.error);
     }
   }
+}
+
+// The per-frame tables of tree.json and report.json, and their totals.
+struct FrameTables {
+  int aligned = 0, flagged = 0, flipped = 0;
+  double rms_sum = 0;
+  json nodes = json::array(), per_frame = json::array(), excluded = json::array();
+};
+
+FrameTables frame_tables(const Plan& plan, const Diagnoser& diagnoses) {
+  const std::vector<FrameData>& frames = plan.frames;
+  std::vector<int> database_index(frames.size(), -1);
+  for (int k = 0; k < static_cast<int>(plan.usable.size()); ++k) database_index[plan.usable[k]] = k;
+  FrameTables t;
+  for (const FrameData& f : frames) {
+    const FrameStatus& s = f.status;
+    json node = {{"take", s.take},     {"frame", s.frame},   {"aligned", s.aligned},
+                 {"parent", s.parent}, {"depth", s.depth},   {"distance", s.parent_distance},
+                 {"flags", s.flags}, {"handles", s.handles}};
+    if (s.aligned) {
+      node["residual_mm"] = 1e3 * s.fit.surface_rms;
+      ++t.aligned;
+      t.rms_sum += s.fit.surface_rms * s.fit.surface_rms;
+      t.flipped += s.fit.flipped_triangles;
+      json entry = fit_json(s.fit);
+      entry["take"] = s.take;
+      entry["frame"] = s.frame;
+      entry["seconds"] = s.seconds;
+      entry["flags"] = s.flags;
+      if (!s.error.empty()) {
+        entry["error"] = s.error;
+        ++t.flagged;
+      }
+      const int k = database_index[&f - frames.data()];
+      if (k >= 0 && diagnoses[k].done) {
+        entry["diagnosis"] = diagnosis_json(diagnoses[k], diagnoses.regions());
+      }
+      t.per_frame.push_back(entry);
+    } else {
+      t.excluded.push_back(
+          {{"take", s.take}, {"frame", s.frame}, {"reason", s.error}, {"flags", s.flags}});
+    }
+    t.nodes.push_back(node);
+  }
+  return t;
+}
+
+// tree.json: the template and every frame's node in the tree, as finally registered.
+void write_tree_json(const fs::path& out, int root, const Mesh& template_mesh, const json& nodes) {
+  json tree_json = {{"version", 1},
+                    {"root", root},
+                    {"template", "template.ply"},
+                    {"template_vertices", template_mesh.num_vertices()},
+                    {"descriptor", "volumetric shape histogram, L2 distance minimised over rotation "
+                                   "about the up axis"},
+                    {"nodes", nodes}};
+  write_file_atomic(out / "tree.json", tree_json.dump(1) + "\n");
+}
+
+// report.json's diagnosis section: how many frames are wrong, the patches, the cues' limits.
+json diagnosis_summary(const Diagnoser& diagnoses, int diagnosed_wrong) {
+  const DiagnosisLimits& limits = diagnoses.limits();
+  return {{"wrong_frames", diagnosed_wrong},
+          {"regions", diagnoses.regions().names},
+          {"cue_columns", {"residual_p90_mm", "uncovered", "stretch_rms", "flipped", "jump_mm",
+                           "jump_ratio"}},
+          {"limits", {{"residual_p90_mm", 1e3 * limits.residual},
+                      {"uncovered", limits.uncovered},
+                      {"stretch_rms", limits.stretch},
+                      {"flipped", limits.flipped},
+                      {"jump_mm", 1e3 * limits.jump},
+                      {"jump_ratio", limits.jump_ratio}}}};
+}
+
+// The finish job: merges the branch jobs' results, re-parents and keeps what failed, runs the
+// baseline and writes the reports.
+void run_finish_job(const fs::path& out, const StageArgs& args, const AlignOptions& options,
+                    const std::string& options_header) {
+  log::Timer timer;
+  Registrations reg(0);
+  Mesh template_mesh;
+  Plan plan = load_plan(out, options, &reg, &template_mesh);
+  const double job_seconds = read_branch_results(out, plan, reg, template_mesh);
+  const TemplateModel model = build_template_model(template_mesh, options.registration);
+  std::vector<FrameData>& frames = plan.frames;
+  const int n = static_cast<int>(plan.usable.size());
+  const int root = plan.usable[plan.tree.root];
+  flag_tree_outcome(plan, reg, options);
+
+  TreeRegistration registration(model, plan, reg, options, out);
+  reparent_unaligned(plan, reg, registration, options);
+  // 4b. Outlier fits.
+  if (options.outlier_rms_factor > 0) refit_outliers(plan, reg, registration, options);
+  std::vector<char> kept;
+  const std::set<fs::path> written = keep_failed_fits(plan, reg, registration, options, kept);
+  set_statuses(plan, reg, kept);
+
+  // 5b. Self-diagnosis: every fit measured patch by patch; a frame with a patch over a limit is
+  //     registered again from other parents, and if still wrong flagged, the patch named.
+  std::vector<char> has_result(n, 0);
+  for (int k = 0; k < n; ++k) has_result[k] = reg.aligned[k] || kept[k];
+  Diagnoser diagnoses(model, plan, reg, has_result, options);
+  if (options.retry_diagnosed) retry_wrong_frames(plan, reg, registration, diagnoses, options);
+  const int diagnosed_wrong = flag_diagnosed(plan, diagnoses);
+  set_depths(frames, plan.usable);
 
   // 6. The baseline.
   json sequential;
@@ -1309,76 +1429,29 @@ void run_finish_job(const fs::path& out, const StageArgs& args, const AlignOptio
   // Outputs.
   remove_stale_frames(out, written);
   const double seconds = job_seconds + timer.seconds();
-  int aligned_count = 0, flagged_count = 0;
-  double rms_sum = 0;
-  int flipped = 0;
-  json nodes = json::array(), per_frame = json::array(), excluded = json::array();
-  for (const FrameData& f : frames) {
-    const FrameStatus& s = f.status;
-    json node = {{"take", s.take},     {"frame", s.frame},   {"aligned", s.aligned},
-                 {"parent", s.parent}, {"depth", s.depth},   {"distance", s.parent_distance},
-                 {"flags", s.flags}, {"handles", s.handles}};
-    if (s.aligned) {
-      node["residual_mm"] = 1e3 * s.fit.surface_rms;
-      ++aligned_count;
-      rms_sum += s.fit.surface_rms * s.fit.surface_rms;
-      flipped += s.fit.flipped_triangles;
-      json entry = fit_json(s.fit);
-      entry["take"] = s.take;
-      entry["frame"] = s.frame;
-      entry["seconds"] = s.seconds;
-      entry["flags"] = s.flags;
-      if (!s.error.empty()) {
-        entry["error"] = s.error;
-        ++flagged_count;
-      }
-      const int k = database_index[&f - frames.data()];
-      if (k >= 0 && diagnoses[k].done) entry["diagnosis"] = diagnosis_json(diagnoses[k], regions);
-      per_frame.push_back(entry);
-    } else {
-      excluded.push_back({{"take", s.take}, {"frame", s.frame}, {"reason", s.error}, {"flags", s.flags}});
-    }
-    nodes.push_back(node);
-  }
-  json tree_json = {{"version", 1},
-                    {"root", root},
-                    {"template", "template.ply"},
-                    {"template_vertices", template_mesh.num_vertices()},
-                    {"descriptor", "volumetric shape histogram, L2 distance minimised over rotation "
-                                   "about the up axis"},
-                    {"nodes", nodes}};
-  write_file_atomic(out / "tree.json", tree_json.dump(1) + "\n");
+  const FrameTables t = frame_tables(plan, diagnoses);
+  write_tree_json(out, root, template_mesh, t.nodes);
   json report = {{"version", 1},
                  {"input", args.oracle ? "oracle" : "pipeline"},
                  {"frames", frames.size()},
-                 {"aligned", aligned_count},
-                 {"flagged", flagged_count},
-                 {"excluded", excluded},
+                 {"aligned", t.aligned},
+                 {"flagged", t.flagged},
+                 {"excluded", t.excluded},
                  {"template_vertices", template_mesh.num_vertices()},
-                 {"surface_rms_mm", aligned_count ? 1e3 * std::sqrt(rms_sum / aligned_count) : 0.0},
-                 {"flipped_triangles", flipped},
+                 {"surface_rms_mm", t.aligned ? 1e3 * std::sqrt(t.rms_sum / t.aligned) : 0.0},
+                 {"flipped_triangles", t.flipped},
                  {"branch_jobs", plan.branches},
                  {"seconds", seconds},
                  {"seconds_per_frame", seconds / static_cast<double>(frames.size())},
-                 {"diagnosis",
-                  {{"wrong_frames", diagnosed_wrong},
-                   {"regions", regions.names},
-                   {"cue_columns", {"residual_p90_mm", "uncovered", "stretch_rms", "flipped",
-                                    "jump_mm", "jump_ratio"}},
-                   {"limits", {{"residual_p90_mm", 1e3 * limits.residual},
-                               {"uncovered", limits.uncovered},
-                               {"stretch_rms", limits.stretch},
-                               {"flipped", limits.flipped},
-                               {"jump_mm", 1e3 * limits.jump},
-                               {"jump_ratio", limits.jump_ratio}}}}},
-                 {"per_frame", per_frame}};
+                 {"diagnosis", diagnosis_summary(diagnoses, diagnosed_wrong)},
+                 {"per_frame", t.per_frame}};
   if (options.sequential_baseline) report["sequential"] = sequential;
   write_file_atomic(out / "report.json", report.dump(1) + "\n");
   write_file_atomic(out / "options.yaml", options_header + options_text(options));
   log::info("aligned {} of {} frames ({} of them kept despite a failed fit, flagged; {} diagnosed "
             "wrong somewhere), surface rms {:.2f} mm, {} flipped triangles, {:.2f} s per frame",
-            aligned_count, frames.size(), flagged_count, diagnosed_wrong,
-            report["surface_rms_mm"].get<double>(), flipped,
+            t.aligned, frames.size(), t.flagged, diagnosed_wrong,
+            report["surface_rms_mm"].get<double>(), t.flipped,
             seconds / static_cast<double>(frames.size()));
 }
 

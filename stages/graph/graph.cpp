@@ -179,12 +179,10 @@ nlohmann::json graph_summary(const MotionGraph& graph, const GraphBuildReport& r
   return j;
 }
 
-void run_graph(const Session& session, const StageArgs& args) {
-  GraphOptions options;
-  session.stage_options("graph", options);
-  options.check();
-  const SessionConfig& config = session.config();
-  const fs::path in_dir = motion_space_dir(session, args);
+namespace {
+
+// The session's motion spaces, in session.yaml's order, checked against its declarations.
+std::vector<MotionSpace> load_spaces(const SessionConfig& config, const fs::path& in_dir) {
   std::vector<MotionSpace> spaces;
   for (const MotionClassConfig& motion : config.motions) {
     const fs::path file = find_motion_space_file(in_dir, motion.name);
@@ -196,25 +194,12 @@ void run_graph(const Session& session, const StageArgs& args) {
                                    motion.name, motion.cyclic ? "cyclic" : "one-shot"));
     }
   }
-  // E_S is a squared distance: cost_unit (per m^2) scales with the subject as 1 / factor^2, so
-  // that lambda weighs latency against the same relative dissimilarity for a subject of any
-  // size (reconstruct's subject, else the motion spaces' character height).
-  const Subject subject = stage_subject(session, session.dir("reconstruct"), [&] {
-    Subject s;
-    s.size = s.height = spaces.front().character_height;
-    s.factor = subject_scale_factor(s.size);
-    s.source = "the motion spaces' character height";
-    return s;
-  });
-  options.transitions.cost_unit /= subject.factor * subject.factor;
-  log_subject("graph", subject, 1);
-  log::Timer timer;
-  GraphBuildReport report;
-  Asset asset;
-  asset.graph =
-      build_motion_graph(config.name, config.fps, std::move(spaces), config.transitions, options,
-                         &report);
-  asset.transitions = options.transitions;
+  return spaces;
+}
+
+// The key textures of the asset, when the texture stage made an atlas and options want them.
+void add_key_textures(const Session& session, const StageArgs& args, const GraphOptions& options,
+                      Asset& asset) {
   const fs::path texture_dir = stage_input_dir(session, args, "texture");
   if (options.textures.keys == 0) {
     log::info("no key textures (textures.keys: 0)");
@@ -230,20 +215,27 @@ void run_graph(const Session& session, const StageArgs& args) {
               asset.graph.textures.images.size(), asset.graph.textures.width,
               asset.graph.textures.height, texture_dir.string(), tt.seconds());
   }
-  for (const EdgeBuildReport& e : report.edges) {
-    log::info("edge {} -> {}{}: d_max {:.4g} m^2, similarity {:.2f} s CPU, {} precomputed "
-              "transitions in {:.2f} s CPU",
-              e.from, e.to, e.self_loop ? " (loop)" : "", e.max_distance,
-              e.similarity_cpu_seconds, e.precomputed, e.precompute_cpu_seconds);
-  }
-  log::info("graph: {} spaces, {} edges in {:.1f} s", asset.graph.spaces.size(),
-            asset.graph.edges.size(), timer.seconds());
+}
 
-  const fs::path graph_dir = stage_output_dir(session, args, "graph");
-  ensure_directory(graph_dir);
-  const fs::path asset_file = asset_path(session, args.oracle);
-  ensure_directory(asset_file.parent_path());
-  save_asset(asset_file, asset);
+// Where each one-shot space goes when it ends with no request (the runtime's rule,
+// MotionGraph::default_successor, over the asset's edges), logged.
+nlohmann::json default_successors(const MotionGraph& graph) {
+  nlohmann::json successors = nlohmann::json::object();
+  for (int k = 0; k < static_cast<int>(graph.spaces.size()); ++k) {
+    if (graph.spaces[k].cyclic()) continue;
+    const int next = graph.default_successor(k);
+    successors[graph.spaces[k].name()] =
+        next >= 0 ? nlohmann::json(graph.spaces[next].name()) : nlohmann::json(nullptr);
+    log::info("{}: ends into {} when nothing is requested", graph.spaces[k].name(),
+              next >= 0 ? graph.spaces[next].name() : "its last pose (no way out)");
+  }
+  return successors;
+}
+
+// graph.json: the graph's summary, the asset file, its textures and the default successors.
+void write_graph_json(const Session& session, const fs::path& graph_dir, const fs::path& asset_file,
+                      const Asset& asset, const GraphBuildReport& report,
+                      const GraphOptions& options) {
   nlohmann::json summary = graph_summary(asset.graph, report);
   summary["asset"] = fs::relative(asset_file, session.root()).generic_string();
   summary["asset_bytes"] = fs::file_size(asset_file);
@@ -253,29 +245,22 @@ void run_graph(const Session& session, const StageArgs& args) {
                          {"height", textures.height},
                          {"keys", textures.empty() ? 0 : options.textures.keys},
                          {"jpeg_quality", textures.jpeg_quality}};
-  // Where each one-shot space goes when it ends with no request (the runtime's rule,
-  // MotionGraph::default_successor, over the asset's edges).
-  nlohmann::json successors = nlohmann::json::object();
-  for (int k = 0; k < static_cast<int>(asset.graph.spaces.size()); ++k) {
-    if (asset.graph.spaces[k].cyclic()) continue;
-    const int next = asset.graph.default_successor(k);
-    successors[asset.graph.spaces[k].name()] =
-        next >= 0 ? nlohmann::json(asset.graph.spaces[next].name()) : nlohmann::json(nullptr);
-    log::info("{}: ends into {} when nothing is requested", asset.graph.spaces[k].name(),
-              next >= 0 ? asset.graph.spaces[next].name() : "its last pose (no way out)");
-  }
-  summary["default_successors"] = successors;
+  summary["default_successors"] = default_successors(asset.graph);
   write_file_atomic(graph_dir / "graph.json", summary.dump(1));
-  // Table 2 compares transition methods between two different spaces; a graph of one motion
-  // class (self-loops only) has none, unless the session lists spaces (then it is an error).
-  const bool between_spaces = std::any_of(asset.graph.edges.begin(), asset.graph.edges.end(),
+}
+
+// Table 2 compares transition methods between two different spaces; a graph of one motion
+// class (self-loops only) has none, unless the session lists spaces (then it is an error).
+void run_table2(const fs::path& graph_dir, const MotionGraph& graph, const GraphOptions& options,
+                const GraphBuildReport& report) {
+  const bool between_spaces = std::any_of(graph.edges.begin(), graph.edges.end(),
                                           [](const GraphEdge& e) { return !e.self_loop; });
   if (options.table2.transitions > 0 && !between_spaces && options.table2.spaces.empty()) {
     log::info("Table 2: skipped, the graph has no transition between two different spaces");
   }
   if (options.table2.transitions > 0 && (between_spaces || !options.table2.spaces.empty())) {
     log::Timer t2;
-    const Table2 table = evaluate_table2(asset.graph, options.transitions, options.table2,
+    const Table2 table = evaluate_table2(graph, options.transitions, options.table2,
                                          report.similarity_cpu_seconds,
                                          report.precompute_cpu_seconds);
     for (const Table2Row& r : table.rows) {
@@ -295,6 +280,52 @@ void run_graph(const Session& session, const StageArgs& args) {
     std::error_code ec;
     fs::remove(graph_dir / "table2.json", ec);  // not from an earlier run with other options
   }
+}
+
+}  // namespace
+
+void run_graph(const Session& session, const StageArgs& args) {
+  GraphOptions options;
+  session.stage_options("graph", options);
+  options.check();
+  const SessionConfig& config = session.config();
+  std::vector<MotionSpace> spaces = load_spaces(config, motion_space_dir(session, args));
+  // E_S is a squared distance: cost_unit (per m^2) scales with the subject as 1 / factor^2, so
+  // that lambda weighs latency against the same relative dissimilarity for a subject of any
+  // size (reconstruct's subject, else the motion spaces' character height).
+  const Subject subject = stage_subject(session, session.dir("reconstruct"), [&] {
+    Subject s;
+    s.size = s.height = spaces.front().character_height;
+    s.factor = subject_scale_factor(s.size);
+    s.source = "the motion spaces' character height";
+    return s;
+  });
+  options.transitions.cost_unit /= subject.factor * subject.factor;
+  log_subject("graph", subject, 1);
+  log::Timer timer;
+  GraphBuildReport report;
+  Asset asset;
+  asset.graph =
+      build_motion_graph(config.name, config.fps, std::move(spaces), config.transitions, options,
+                         &report);
+  asset.transitions = options.transitions;
+  add_key_textures(session, args, options, asset);
+  for (const EdgeBuildReport& e : report.edges) {
+    log::info("edge {} -> {}{}: d_max {:.4g} m^2, similarity {:.2f} s CPU, {} precomputed "
+              "transitions in {:.2f} s CPU",
+              e.from, e.to, e.self_loop ? " (loop)" : "", e.max_distance,
+              e.similarity_cpu_seconds, e.precomputed, e.precompute_cpu_seconds);
+  }
+  log::info("graph: {} spaces, {} edges in {:.1f} s", asset.graph.spaces.size(),
+            asset.graph.edges.size(), timer.seconds());
+
+  const fs::path graph_dir = stage_output_dir(session, args, "graph");
+  ensure_directory(graph_dir);
+  const fs::path asset_file = asset_path(session, args.oracle);
+  ensure_directory(asset_file.parent_path());
+  save_asset(asset_file, asset);
+  write_graph_json(session, graph_dir, asset_file, asset, report, options);
+  run_table2(graph_dir, asset.graph, options, report);
   YAML::Emitter yaml;
   yaml << to_yaml(options);
   write_file_atomic(graph_dir / "options.yaml", std::string(yaml.c_str()) + "\n");

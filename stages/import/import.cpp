@@ -252,15 +252,8 @@ void export_only(const ImportOptions& options) {
             unit_name(unit), options.export_path.string());
 }
 
-}  // namespace
-
-void run_import(const ImportOptions& options) {
-  const fs::path root = options.session;
-  if (!options.export_format.empty()) {
-    export_only(options);
-    return;
-  }
-  const bool frames_wanted = !options.videos.empty() || !options.video_for.empty() || !options.images.empty();
+// The request checked before anything is written: something to import, in a form that fits.
+void check_request(const ImportOptions& options, bool frames_wanted) {
   const bool anything = !options.calibration.paths.empty() || frames_wanted || !options.plates.empty() ||
                         !options.plate_for.empty() || !options.masks.empty() || !options.meshes.empty();
   if (!anything) throw UsageError("nothing to import: give --calibration, --videos/--images, --plates, --masks or --meshes");
@@ -268,228 +261,298 @@ void run_import(const ImportOptions& options) {
   if (options.takes.empty() && (frames_wanted || !options.masks.empty() || !options.meshes.empty())) {
     throw UsageError("frames, masks and meshes go into takes: give --take NAME[=FIRST:LAST] (repeatable)");
   }
-  ensure_directory(root);
-  const bool new_session = !fs::exists(root / "session.yaml");
-  std::optional<Session> session;
-  if (!new_session) session = Session::open(root);
-  Outputs outputs(root, options.replace);
+}
+
+// One import's steps, in order, and what they hand each other: the cameras, the takes and their
+// frame counts, the staged folders and the records written once every step passed.
+class Import {
+ public:
+  Import(const ImportOptions& options, bool frames_wanted)
+      : options_(options),
+        root_(options.session),
+        frames_wanted_(frames_wanted),
+        new_session_(!fs::exists(root_ / "session.yaml")),
+        session_(new_session_ ? std::nullopt : std::optional<Session>(Session::open(root_))),
+        outputs_(root_, options.replace) {}
+
+  void calibration();         // 1.
+  void takes_and_frames();    // 2.
+  void plates();              // 3.
+  void masks();               // 4.
+  void meshes();              // 5.
+  void session_and_commit();  // 6. and the commit
+
+ private:
   struct Record {
     fs::path dir;
     std::string what;
     std::vector<std::string> sources;
     json takes, checks;
   };
-  std::vector<Record> records;
+  void import_calibration_files();
+  std::vector<std::string> frame_sources(std::map<std::string, Sequence>& sequences);
+  void take_fps_from_videos(const std::map<std::string, Sequence>& sequences);
 
-  // 1. Calibration.
-  std::vector<Camera> cameras;
-  Eigen::Matrix3d world_rotation = Eigen::Matrix3d::Identity();
-  std::optional<Eigen::Vector3d> volume_centre;
-  if (!options.calibration.paths.empty()) {
-    const ImportedCalibration imported = import_calibration(options.calibration);
-    cameras = imported.cameras;
-    world_rotation = imported.world_rotation;
-    volume_centre = imported.geometry.centre;
-    log::info("calibration: {} cameras read as {} ({})", cameras.size(), detect_format(options.calibration),
-              imported.convention);
-    log::info("calibration: lengths in {}, {}", unit_name(imported.unit), imported.unit_origin);
-    log::info("calibration: up axis {}; {}", imported.up_axis, imported.world_change);
-    for (const auto& n : imported.notes) log::warn("calibration: {}", n);
-    for (const auto& w : imported.warnings) log::warn("calibration: {}", w);
-    const Eigen::Vector3d& c = imported.geometry.centre;
-    log::info("calibration: the cameras look at ({:.3f}, {:.3f}, {:.3f}) m\n{}", c.x(), c.y(), c.z(),
-              summary_table(cameras, imported.geometry));
-    const fs::path staged = outputs.stage("calibration");
-    write_colmap_model(staged, cameras);
-    json per_camera = json::array();
-    for (std::size_t i = 0; i < cameras.size(); ++i) {
-      per_camera.push_back({{"name", cameras[i].name}, {"distance_m", imported.geometry.distance[i]},
-                            {"sees_common_centre", static_cast<bool>(imported.geometry.sees[i])}});
-    }
-    std::vector<std::string> sources;
-    for (const auto& p : options.calibration.paths) sources.push_back(relative_to(p, root));
-    json world = json::array();
-    for (int r = 0; r < 3; ++r) world.push_back({world_rotation(r, 0), world_rotation(r, 1), world_rotation(r, 2)});
-    records.push_back({root / "calibration", "calibration", sources, json(nullptr),
-                       {{"format", detect_format(options.calibration)},
-                        {"convention", imported.convention},
-                        {"units", unit_name(imported.unit)},
-                        {"unit_origin", imported.unit_origin},
-                        {"up_axis", imported.up_axis},
-                        {"world_change", imported.world_change},
-                        {"session_from_file_rotation", world},
-                        {"common_centre_m", {c.x(), c.y(), c.z()}},
-                        {"cameras", per_camera},
-                        {"warnings", imported.warnings}}});
-  } else if (fs::exists(root / "calibration")) {
-    cameras = read_colmap_model(root / "calibration");
-    volume_centre = rig_geometry(cameras).centre;
-    log::info("calibration: the session's, {} cameras", cameras.size());
-  } else if (frames_wanted || !options.plates.empty() || !options.masks.empty()) {
-    throw UsageError(fmt::format("{}: no calibration/ yet: give --calibration", root.string()));
-  }
+  const ImportOptions& options_;
+  const fs::path root_;
+  const bool frames_wanted_;
+  const bool new_session_;
+  const std::optional<Session> session_;
+  Outputs outputs_;
+  std::vector<Record> records_;
+  std::vector<Camera> cameras_;
+  Eigen::Matrix3d world_rotation_ = Eigen::Matrix3d::Identity();
+  std::optional<Eigen::Vector3d> volume_centre_;
+  std::vector<TakeSpec> takes_;
+  std::set<std::string> take_names_;
+  double fps_ = 0;
+  std::vector<int> counts_;  // per take, once known
+};
 
-  // 2. Takes and frames.
-  std::vector<TakeSpec> takes;
-  std::set<std::string> take_names;
-  for (const std::string& t : options.takes) {
-    takes.push_back(parse_take(t, options.start, options.end, options.step, options.from_time, options.to_time));
-    if (!take_names.insert(takes.back().name).second) throw UsageError(fmt::format("--take {} is given twice", takes.back().name));
+// 1. Calibration: imported, or the session's.
+void Import::calibration() {
+  if (!options_.calibration.paths.empty()) {
+    import_calibration_files();
+  } else if (fs::exists(root_ / "calibration")) {
+    cameras_ = read_colmap_model(root_ / "calibration");
+    volume_centre_ = rig_geometry(cameras_).centre;
+    log::info("calibration: the session's, {} cameras", cameras_.size());
+  } else if (frames_wanted_ || !options_.plates.empty() || !options_.masks.empty()) {
+    throw UsageError(fmt::format("{}: no calibration/ yet: give --calibration", root_.string()));
   }
-  double fps = options.fps > 0 ? options.fps : session ? session->config().fps : 0.0;
-  std::vector<int> counts;  // per take, once known
-  if (frames_wanted) {
+}
+
+void Import::import_calibration_files() {
+  const ImportedCalibration imported = import_calibration(options_.calibration);
+  cameras_ = imported.cameras;
+  world_rotation_ = imported.world_rotation;
+  volume_centre_ = imported.geometry.centre;
+  log::info("calibration: {} cameras read as {} ({})", cameras_.size(), detect_format(options_.calibration),
+            imported.convention);
+  log::info("calibration: lengths in {}, {}", unit_name(imported.unit), imported.unit_origin);
+  log::info("calibration: up axis {}; {}", imported.up_axis, imported.world_change);
+  for (const auto& n : imported.notes) log::warn("calibration: {}", n);
+  for (const auto& w : imported.warnings) log::warn("calibration: {}", w);
+  const Eigen::Vector3d& c = imported.geometry.centre;
+  log::info("calibration: the cameras look at ({:.3f}, {:.3f}, {:.3f}) m\n{}", c.x(), c.y(), c.z(),
+            summary_table(cameras_, imported.geometry));
+  const fs::path staged = outputs_.stage("calibration");
+  write_colmap_model(staged, cameras_);
+  json per_camera = json::array();
+  for (std::size_t i = 0; i < cameras_.size(); ++i) {
+    per_camera.push_back({{"name", cameras_[i].name}, {"distance_m", imported.geometry.distance[i]},
+                          {"sees_common_centre", static_cast<bool>(imported.geometry.sees[i])}});
+  }
+  std::vector<std::string> sources;
+  for (const auto& p : options_.calibration.paths) sources.push_back(relative_to(p, root_));
+  json world = json::array();
+  for (int r = 0; r < 3; ++r) world.push_back({world_rotation_(r, 0), world_rotation_(r, 1), world_rotation_(r, 2)});
+  records_.push_back({root_ / "calibration", "calibration", sources, json(nullptr),
+                      {{"format", detect_format(options_.calibration)},
+                       {"convention", imported.convention},
+                       {"units", unit_name(imported.unit)},
+                       {"unit_origin", imported.unit_origin},
+                       {"up_axis", imported.up_axis},
+                       {"world_change", imported.world_change},
+                       {"session_from_file_rotation", world},
+                       {"common_centre_m", {c.x(), c.y(), c.z()}},
+                       {"cameras", per_camera},
+                       {"warnings", imported.warnings}}});
+}
+
+// 2. Takes and frames.
+void Import::takes_and_frames() {
+  for (const std::string& t : options_.takes) {
+    takes_.push_back(parse_take(t, options_.start, options_.end, options_.step, options_.from_time, options_.to_time));
+    if (!take_names_.insert(takes_.back().name).second) throw UsageError(fmt::format("--take {} is given twice", takes_.back().name));
+  }
+  fps_ = options_.fps > 0 ? options_.fps : session_ ? session_->config().fps : 0.0;
+  if (frames_wanted_) {
     std::map<std::string, Sequence> sequences;
-    std::vector<std::string> sources;
-    if (!options.images.empty()) {
-      sequences = pattern_sequences(options.images, cameras);
-      sources.push_back(options.images);
-    } else {
-      const auto matched = match_files_to_cameras(list_files(options.videos, video_extensions()), options.video_for,
-                                                  cameras, "video");
-      for (const auto& [camera, files] : matched) {
-        sequences[camera] = Sequence{camera, files.front(), {}};
-        sources.push_back(relative_to(files.front(), root));
-      }
-      if (options.fps <= 0) {
-        const double video_rate = video_fps(sequences.begin()->second.video, sequences.begin()->first);
-        for (const auto& [camera, s] : sequences) {
-          const double r = video_fps(s.video, camera);
-          if (std::abs(r - video_rate) > 1e-3 * video_rate) {
-            log::warn("video {} (camera {}) runs at {:.3f} fps, {} at {:.3f}", s.video.string(), camera, r,
-                      sequences.begin()->second.video.string(), video_rate);
-          }
-        }
-        if (video_rate > 0) {
-          if (session && std::abs(video_rate - session->config().fps) > 1e-3) {
-            log::warn("the videos run at {:.3f} fps, session.yaml says fps {}", video_rate, session->config().fps);
-          }
-          fps = video_rate;
-        }
-      }
-    }
-    for (TakeSpec& t : takes) t = resolve_times(t, fps);
+    const std::vector<std::string> sources = frame_sources(sequences);
+    for (TakeSpec& t : takes_) t = resolve_times(t, fps_);
     std::vector<fs::path> take_dirs;
-    for (const TakeSpec& t : takes) take_dirs.push_back(outputs.stage(fs::path("capture") / t.name));
-    log::info("frames: {} cameras, takes {}", cameras.size(), join(std::vector<std::string>(take_names.begin(), take_names.end())));
+    for (const TakeSpec& t : takes_) take_dirs.push_back(outputs_.stage(fs::path("capture") / t.name));
+    log::info("frames: {} cameras, takes {}", cameras_.size(), join(std::vector<std::string>(take_names_.begin(), take_names_.end())));
     log::Timer timer;
-    counts = write_sequences(cameras, sequences, takes, take_dirs, -1, "frames");
+    counts_ = write_sequences(cameras_, sequences, takes_, take_dirs, -1, "frames");
     int total = 0;
-    for (int n : counts) total += n;
-    log::info("frames: {} frames x {} cameras in {:.1f} s ({:.1f} ms per image)", total, cameras.size(),
-              timer.seconds(), 1000 * timer.seconds() / std::max(1, total * static_cast<int>(cameras.size())));
-    takes = closed(takes, counts);
-    records.push_back({root / "capture", "capture", sources, takes_json(takes, counts),
-                       {{"cameras", cameras.size()}, {"fps", fps}, {"frame_sizes_match_calibration", true}}});
-  } else if (!takes.empty()) {
-    for (TakeSpec& t : takes) t = resolve_times(t, fps);
+    for (int n : counts_) total += n;
+    log::info("frames: {} frames x {} cameras in {:.1f} s ({:.1f} ms per image)", total, cameras_.size(),
+              timer.seconds(), 1000 * timer.seconds() / std::max(1, total * static_cast<int>(cameras_.size())));
+    takes_ = closed(takes_, counts_);
+    records_.push_back({root_ / "capture", "capture", sources, takes_json(takes_, counts_),
+                        {{"cameras", cameras_.size()}, {"fps", fps_}, {"frame_sizes_match_calibration", true}}});
+  } else if (!takes_.empty()) {
+    for (TakeSpec& t : takes_) t = resolve_times(t, fps_);
     // Masks or meshes of takes captured before: their frames are the capture's.
-    if (session && !cameras.empty()) {
-      for (TakeSpec& t : takes) {
-        const int n = existing_take_frames(*session, t.name, cameras.front().name);
+    if (session_ && !cameras_.empty()) {
+      for (TakeSpec& t : takes_) {
+        const int n = existing_take_frames(*session_, t.name, cameras_.front().name);
         if (n > 0 && t.last < 0 && t.first == 0 && t.step == 1) t.last = n - 1;
       }
     }
   }
+}
 
-  // 3. Background plates.
-  if (!options.plates.empty() || !options.plate_for.empty()) {
-    std::vector<std::string> extensions = image_extensions();
-    extensions.insert(extensions.end(), video_extensions().begin(), video_extensions().end());
-    const auto matched = match_files_to_cameras(list_files(options.plates, extensions), options.plate_for, cameras,
-                                                "plate", /*several=*/true);
-    const fs::path staged = outputs.stage("plates");
-    std::vector<std::string> sources;
-    json per_camera = json::object();
-    for (const auto& [camera_name, files] : matched) {
-      const Camera& camera = camera_named(cameras, camera_name);
-      int index = 0;
-      for (const fs::path& file : files) {
-        sources.push_back(relative_to(file, root));
-        std::vector<cv::Mat> images;
-        if (is_video_file(file)) {
-          images = sample_video(file, camera_name, options.plate_frames);
-        } else {
-          images.push_back(read_image(file));
-        }
-        for (const cv::Mat& image : images) {
-          check_size(image, camera, fmt::format("plate {} (camera {})", file.string(), camera_name));
-          write_image_atomic(staged / camera_name / (frame_name(index++) + ".png"), image);
-        }
+// Every camera's image sequence or video; returns the sources for the record.
+std::vector<std::string> Import::frame_sources(std::map<std::string, Sequence>& sequences) {
+  std::vector<std::string> sources;
+  if (!options_.images.empty()) {
+    sequences = pattern_sequences(options_.images, cameras_);
+    sources.push_back(options_.images);
+    return sources;
+  }
+  const auto matched = match_files_to_cameras(list_files(options_.videos, video_extensions()), options_.video_for,
+                                              cameras_, "video");
+  for (const auto& [camera, files] : matched) {
+    sequences[camera] = Sequence{camera, files.front(), {}};
+    sources.push_back(relative_to(files.front(), root_));
+  }
+  if (options_.fps <= 0) take_fps_from_videos(sequences);
+  return sources;
+}
+
+// The frame rate of the videos (warned about when they or session.yaml disagree).
+void Import::take_fps_from_videos(const std::map<std::string, Sequence>& sequences) {
+  const double video_rate = video_fps(sequences.begin()->second.video, sequences.begin()->first);
+  for (const auto& [camera, s] : sequences) {
+    const double r = video_fps(s.video, camera);
+    if (std::abs(r - video_rate) > 1e-3 * video_rate) {
+      log::warn("video {} (camera {}) runs at {:.3f} fps, {} at {:.3f}", s.video.string(), camera, r,
+                sequences.begin()->second.video.string(), video_rate);
+    }
+  }
+  if (video_rate > 0) {
+    if (session_ && std::abs(video_rate - session_->config().fps) > 1e-3) {
+      log::warn("the videos run at {:.3f} fps, session.yaml says fps {}", video_rate, session_->config().fps);
+    }
+    fps_ = video_rate;
+  }
+}
+
+// 3. Background plates.
+void Import::plates() {
+  if (options_.plates.empty() && options_.plate_for.empty()) return;
+  std::vector<std::string> extensions = image_extensions();
+  extensions.insert(extensions.end(), video_extensions().begin(), video_extensions().end());
+  const auto matched = match_files_to_cameras(list_files(options_.plates, extensions), options_.plate_for, cameras_,
+                                              "plate", /*several=*/true);
+  const fs::path staged = outputs_.stage("plates");
+  std::vector<std::string> sources;
+  json per_camera = json::object();
+  for (const auto& [camera_name, files] : matched) {
+    const Camera& camera = camera_named(cameras_, camera_name);
+    int index = 0;
+    for (const fs::path& file : files) {
+      sources.push_back(relative_to(file, root_));
+      std::vector<cv::Mat> images;
+      if (is_video_file(file)) {
+        images = sample_video(file, camera_name, options_.plate_frames);
+      } else {
+        images.push_back(read_image(file));
       }
-      per_camera[camera_name] = index;
-      log::info("plates camera {}: {} images", camera_name, index);
+      for (const cv::Mat& image : images) {
+        check_size(image, camera, fmt::format("plate {} (camera {})", file.string(), camera_name));
+        write_image_atomic(staged / camera_name / (frame_name(index++) + ".png"), image);
+      }
     }
-    records.push_back({root / "plates", "plates", sources, json(nullptr), {{"plates_per_camera", per_camera}}});
+    per_camera[camera_name] = index;
+    log::info("plates camera {}: {} images", camera_name, index);
   }
+  records_.push_back({root_ / "plates", "plates", sources, json(nullptr), {{"plates_per_camera", per_camera}}});
+}
 
-  // 4. Masks.
-  if (!options.masks.empty()) {
-    std::vector<fs::path> take_dirs;
-    for (const TakeSpec& t : takes) take_dirs.push_back(outputs.stage(fs::path("masks") / t.name));
-    const std::vector<int> mask_counts = write_sequences(cameras, pattern_sequences(options.masks, cameras), takes,
-                                                         take_dirs, options.mask_threshold, "masks");
-    if (!counts.empty() && mask_counts != counts) {
-      throw InputError(fmt::format("--masks {}: the masks give takes other frame counts than the frames", options.masks));
-    }
-    records.push_back({root / "masks", "masks", {options.masks}, takes_json(takes, mask_counts),
-                       {{"threshold", options.mask_threshold}, {"values", "0/255"}, {"sizes_match_calibration", true}}});
+// 4. Masks.
+void Import::masks() {
+  if (options_.masks.empty()) return;
+  std::vector<fs::path> take_dirs;
+  for (const TakeSpec& t : takes_) take_dirs.push_back(outputs_.stage(fs::path("masks") / t.name));
+  const std::vector<int> mask_counts = write_sequences(cameras_, pattern_sequences(options_.masks, cameras_), takes_,
+                                                       take_dirs, options_.mask_threshold, "masks");
+  if (!counts_.empty() && mask_counts != counts_) {
+    throw InputError(fmt::format("--masks {}: the masks give takes other frame counts than the frames", options_.masks));
   }
+  records_.push_back({root_ / "masks", "masks", {options_.masks}, takes_json(takes_, mask_counts),
+                      {{"threshold", options_.mask_threshold}, {"values", "0/255"}, {"sizes_match_calibration", true}}});
+}
 
-  // 5. Meshes.
-  if (!options.meshes.empty()) {
-    MeshImportOptions mesh_options;
-    mesh_options.units = options.mesh_units;
-    mesh_options.consistent = options.consistent;
-    mesh_options.world_rotation = world_rotation;
-    mesh_options.volume_centre = volume_centre;
-    const std::vector<fs::path> files = list_files(options.meshes, {".ply", ".obj"});
-    std::vector<fs::path> take_dirs;
-    fs::path template_file;
-    if (options.consistent) {
-      const fs::path out = outputs.stage("align");
-      template_file = out / "template.ply";
-      for (const TakeSpec& t : takes) take_dirs.push_back(out / t.name);
-    } else {
-      for (const TakeSpec& t : takes) take_dirs.push_back(outputs.stage(fs::path("reconstruct") / t.name));
-    }
-    const MeshImportResult result = import_meshes(files, takes, mesh_options, take_dirs, template_file);
-    log::info("meshes: {} frames, lengths in {} ({}){}", result.check.frames, unit_name(result.unit),
-              result.unit_origin, world_rotation.isIdentity() ? "" : ", rotated with the calibration's world");
-    for (const auto& w : result.warnings) log::warn("meshes: {}", w);
-    json takes_record = json::object();
-    for (const auto& [take, n] : result.frames) takes_record[take] = {{"frames", n}};
-    json checks = {{"units", unit_name(result.unit)}, {"unit_origin", result.unit_origin},
-                   {"manifold", result.check.to_json()}, {"consistent_topology", options.consistent},
-                   {"confidence", "none (not from fourd-reconstruct)"}};
-    std::vector<std::string> sources;
-    for (const auto& p : options.meshes) sources.push_back(relative_to(p, root));
-    const std::string what = options.consistent ? "align" : "reconstruct";
-    records.push_back({root / what, what, sources, takes_record, checks});
+// 5. Meshes: as reconstruct's output, or with --consistent as align's.
+void Import::meshes() {
+  if (options_.meshes.empty()) return;
+  MeshImportOptions mesh_options;
+  mesh_options.units = options_.mesh_units;
+  mesh_options.consistent = options_.consistent;
+  mesh_options.world_rotation = world_rotation_;
+  mesh_options.volume_centre = volume_centre_;
+  const std::vector<fs::path> files = list_files(options_.meshes, {".ply", ".obj"});
+  std::vector<fs::path> take_dirs;
+  fs::path template_file;
+  if (options_.consistent) {
+    const fs::path out = outputs_.stage("align");
+    template_file = out / "template.ply";
+    for (const TakeSpec& t : takes_) take_dirs.push_back(out / t.name);
+  } else {
+    for (const TakeSpec& t : takes_) take_dirs.push_back(outputs_.stage(fs::path("reconstruct") / t.name));
   }
+  const MeshImportResult result = import_meshes(files, takes_, mesh_options, take_dirs, template_file);
+  log::info("meshes: {} frames, lengths in {} ({}){}", result.check.frames, unit_name(result.unit),
+            result.unit_origin, world_rotation_.isIdentity() ? "" : ", rotated with the calibration's world");
+  for (const auto& w : result.warnings) log::warn("meshes: {}", w);
+  json takes_record = json::object();
+  for (const auto& [take, n] : result.frames) takes_record[take] = {{"frames", n}};
+  json checks = {{"units", unit_name(result.unit)}, {"unit_origin", result.unit_origin},
+                 {"manifold", result.check.to_json()}, {"consistent_topology", options_.consistent},
+                 {"confidence", "none (not from fourd-reconstruct)"}};
+  std::vector<std::string> sources;
+  for (const auto& p : options_.meshes) sources.push_back(relative_to(p, root_));
+  const std::string what = options_.consistent ? "align" : "reconstruct";
+  records_.push_back({root_ / what, what, sources, takes_record, checks});
+}
 
-  // 6. session.yaml for a new session.
+// 6. session.yaml for a new session (takes in no motion class of an existing one warned
+// about); then everything checked and written goes into place, then the records, then
+// session.yaml.
+void Import::session_and_commit() {
   std::vector<std::string> names;
-  for (const TakeSpec& t : takes) names.push_back(t.name);
+  for (const TakeSpec& t : takes_) names.push_back(t.name);
   std::string yaml_text;
-  if (new_session) {
-    const std::string name = options.name.empty() ? fs::absolute(root).lexically_normal().filename().string() : options.name;
-    yaml_text = session_yaml(name.empty() ? "session" : name, fps > 0 ? fps : 25, names);
-  } else if (session) {
+  if (new_session_) {
+    const std::string name = options_.name.empty() ? fs::absolute(root_).lexically_normal().filename().string() : options_.name;
+    yaml_text = session_yaml(name.empty() ? "session" : name, fps_ > 0 ? fps_ : 25, names);
+  } else if (session_) {
     std::set<std::string> declared;
-    for (const auto& m : session->config().motions) declared.insert(m.takes.begin(), m.takes.end());
+    for (const auto& m : session_->config().motions) declared.insert(m.takes.begin(), m.takes.end());
     for (const std::string& t : names) {
       if (!declared.count(t)) log::warn("take {} is in no motion class of session.yaml (motions:): add it to one", t);
     }
   }
 
-  // Everything checked and written: into place, then the records, then session.yaml.
-  outputs.commit();
-  for (const Record& r : records) write_record(r.dir, r.what, r.sources, r.takes, r.checks);
-  if (new_session) {
-    write_file_atomic(root / "session.yaml", yaml_text);
-    log::info("wrote {} (motion classes left for you to declare)", (root / "session.yaml").string());
+  outputs_.commit();
+  for (const Record& r : records_) write_record(r.dir, r.what, r.sources, r.takes, r.checks);
+  if (new_session_) {
+    write_file_atomic(root_ / "session.yaml", yaml_text);
+    log::info("wrote {} (motion classes left for you to declare)", (root_ / "session.yaml").string());
   }
+}
+
+}  // namespace
+
+void run_import(const ImportOptions& options) {
+  if (!options.export_format.empty()) {
+    export_only(options);
+    return;
+  }
+  const bool frames_wanted = !options.videos.empty() || !options.video_for.empty() || !options.images.empty();
+  check_request(options, frames_wanted);
+  ensure_directory(options.session);
+  Import import(options, frames_wanted);
+  import.calibration();
+  import.takes_and_frames();
+  import.plates();
+  import.masks();
+  import.meshes();
+  import.session_and_commit();
 }
 
 }  // namespace fourd::import

@@ -48,180 +48,209 @@ struct Best {
   cv::Mat after_pending;     // 1 while the hypothesis after the best is still to come
 };
 
-}  // namespace
+cv::Mat prefiltered(const cv::Mat& gray, const DepthMapOptions& options) {
+  if (options.prefilter_sigma <= 0) return gray;
+  cv::Mat blurred;
+  cv::GaussianBlur(gray, blurred, cv::Size(), options.prefilter_sigma);
+  return blurred;
+}
 
-DepthMap estimate_depth_map(const std::vector<StereoView>& views, int ref,
-                            const std::vector<int>& neighbours, const DepthMapOptions& options) {
-  const StereoView& view = views[ref];
+// The reference view on the hull's rectangle grown by the window (so windows never leave it)
+// and its window statistics over silhouette pixels.
+struct Reference {
+  cv::Rect roi;
+  cv::Size size;
+  cv::Mat gray, hull;
+  cv::Mat mask;  // CV_8U 0/1
+  cv::Mat m;     // the mask as CV_32F
+  cv::Mat s_m, s_g, s_gg;
+  cv::Mat ref_var;  // variance term (sum of squared deviations)
+  cv::Mat usable;   // pixels worth matching
+};
+
+Reference reference_window(const StereoView& view, const DepthMapOptions& options) {
   const PinholeCamera& cam = view.camera;
-  DepthMap out;
-  out.depth = cv::Mat::zeros(cam.height, cam.width, CV_32F);
-  out.score = cv::Mat(cam.height, cam.width, CV_32F, cv::Scalar(-1));
-  if (view.roi.empty() || neighbours.empty()) return out;
-
   const int r = options.window_radius;
-  // Work on the hull's rectangle grown by the window, so windows never leave it.
-  cv::Rect roi(view.roi.x - r - 1, view.roi.y - r - 1, view.roi.width + 2 * r + 2,
-               view.roi.height + 2 * r + 2);
+  Reference ref;
+  cv::Rect& roi = ref.roi;
+  roi = cv::Rect(view.roi.x - r - 1, view.roi.y - r - 1, view.roi.width + 2 * r + 2,
+                 view.roi.height + 2 * r + 2);
   roi &= cv::Rect(0, 0, cam.width, cam.height);
-  const cv::Size size = roi.size();
-
-  auto prepare = [&](const cv::Mat& gray) {
-    if (options.prefilter_sigma <= 0) return gray;
-    cv::Mat blurred;
-    cv::GaussianBlur(gray, blurred, cv::Size(), options.prefilter_sigma);
-    return blurred;
-  };
-  const cv::Mat ref_gray = prepare(view.gray)(roi).clone();
-  const cv::Mat hull = view.hull_depth(roi);
-  cv::Mat mask = cv::Mat(hull > 0) / 255;  // CV_8U 0/1
-  cv::Mat m;
-  mask.convertTo(m, CV_32F);
+  const cv::Size size = ref.size = roi.size();
+  ref.gray = prefiltered(view.gray, options)(roi).clone();
+  ref.hull = view.hull_depth(roi);
+  ref.mask = cv::Mat(ref.hull > 0) / 255;
+  ref.mask.convertTo(ref.m, CV_32F);
 
   // Window statistics of the reference image (over silhouette pixels only).
-  cv::Mat s_m, s_g, s_gg, mg = m.mul(ref_gray);
-  window_sum(m, s_m, r);
-  window_sum(mg, s_g, r);
-  window_sum(mg.mul(ref_gray), s_gg, r);
+  cv::Mat mg = ref.m.mul(ref.gray);
+  window_sum(ref.m, ref.s_m, r);
+  window_sum(mg, ref.s_g, r);
+  window_sum(mg.mul(ref.gray), ref.s_gg, r);
   const float window_area = static_cast<float>((2 * r + 1) * (2 * r + 1));
   // Reference variance term (sum of squared deviations), and pixels worth matching.
-  cv::Mat ref_var(size, CV_32F);
-  cv::Mat usable(size, CV_8U, cv::Scalar(0));
+  ref.ref_var = cv::Mat(size, CV_32F);
+  ref.usable = cv::Mat(size, CV_8U, cv::Scalar(0));
   for (int y = 0; y < size.height; ++y) {
-    const float *sm = s_m.ptr<float>(y), *sg = s_g.ptr<float>(y), *sgg = s_gg.ptr<float>(y);
-    const std::uint8_t* mk = mask.ptr<std::uint8_t>(y);
-    float* v = ref_var.ptr<float>(y);
-    std::uint8_t* u = usable.ptr<std::uint8_t>(y);
+    const float *sm = ref.s_m.ptr<float>(y), *sg = ref.s_g.ptr<float>(y), *sgg = ref.s_gg.ptr<float>(y);
+    const std::uint8_t* mk = ref.mask.ptr<std::uint8_t>(y);
+    float* v = ref.ref_var.ptr<float>(y);
+    std::uint8_t* u = ref.usable.ptr<std::uint8_t>(y);
     for (int x = 0; x < size.width; ++x) {
       v[x] = sm[x] > 0 ? std::max(0.f, sgg[x] - sg[x] * sg[x] / sm[x]) : 0.f;
       u[x] = mk[x] && sm[x] >= options.min_window_fill * window_area &&
              v[x] >= options.min_texture * options.min_texture * sm[x];
     }
   }
+  return ref;
+}
 
-  // Per neighbour: the ray direction of each reference pixel in the neighbour's camera frame
-  // (a), and the reference centre there (b): X_j = depth * a + b.
-  struct Neighbour {
-    const StereoView* view;
-    cv::Mat gray;
-    Eigen::Matrix3d rotation;  // neighbour_from_reference
-    Eigen::Vector3d offset;
-  };
+// A neighbour: the ray direction of each reference pixel in the neighbour's camera frame (a),
+// and the reference centre there (b): X_j = depth * a + b.
+struct Neighbour {
+  const StereoView* view;
+  cv::Mat gray;
+  Eigen::Matrix3d rotation;  // neighbour_from_reference
+  Eigen::Vector3d offset;
+};
+
+std::vector<Neighbour> neighbour_views(const std::vector<StereoView>& views,
+                                       const std::vector<int>& neighbours,
+                                       const PinholeCamera& cam, const DepthMapOptions& options) {
   std::vector<Neighbour> nbs;
   for (int j : neighbours) {
     Neighbour n;
     n.view = &views[j];
-    n.gray = prepare(views[j].gray);
+    n.gray = prefiltered(views[j].gray, options);
     n.rotation = views[j].camera.R * cam.R.transpose();
     n.offset = views[j].camera.t - n.rotation * cam.t;
     nbs.push_back(std::move(n));
   }
-  const Eigen::Matrix3d k_inv = cam.K.inverse();
+  return nbs;
+}
 
-  const int hypotheses =
-      static_cast<int>(std::floor((options.front_margin + options.search_depth) / options.step)) + 1;
-  Best best;
-  best.score = cv::Mat(size, CV_32F, cv::Scalar(-2));
-  best.before = cv::Mat(size, CV_32F, cv::Scalar(-2));
-  best.after = cv::Mat(size, CV_32F, cv::Scalar(-2));
-  best.index = cv::Mat(size, CV_32S, cv::Scalar(-1));
-  best.previous = cv::Mat(size, CV_32F, cv::Scalar(-2));
-  best.after_pending = cv::Mat(size, CV_8U, cv::Scalar(0));
-
-  cv::Mat map_x(size, CV_32F), map_y(size, CV_32F), visible(size, CV_8U);
+// The sweep's images: one hypothesis's scratch and the running best.
+struct Sweep {
+  explicit Sweep(cv::Size size)
+      : map_x(size, CV_32F), map_y(size, CV_32F), visible(size, CV_8U),
+        sum_ncc(size, CV_32F), count(size, CV_32F) {
+    best.score = cv::Mat(size, CV_32F, cv::Scalar(-2));
+    best.before = cv::Mat(size, CV_32F, cv::Scalar(-2));
+    best.after = cv::Mat(size, CV_32F, cv::Scalar(-2));
+    best.index = cv::Mat(size, CV_32S, cv::Scalar(-1));
+    best.previous = cv::Mat(size, CV_32F, cv::Scalar(-2));
+    best.after_pending = cv::Mat(size, CV_8U, cv::Scalar(0));
+  }
+  cv::Mat map_x, map_y, visible;
   cv::Mat warped, mw, s_w, s_ww, s_gw;
-  const bool best_neighbour = options.neighbour_score == "best";
-  cv::Mat sum_ncc(size, CV_32F), count(size, CV_32F);
-  for (int k = 0; k < hypotheses; ++k) {
-    const double offset = -options.front_margin + k * options.step;
-    sum_ncc.setTo(0);
-    count.setTo(0);
-    for (const Neighbour& nb : nbs) {
-      const PinholeCamera& ncam = nb.view->camera;
-      const cv::Mat& nhull = nb.view->hull_depth;
-      // Where each reference pixel's hypothesis lands in the neighbour, and whether the
-      // neighbour can see it (not far behind its own hull surface there).
-      for (int y = 0; y < size.height; ++y) {
-        const float* h = hull.ptr<float>(y);
-        float* mx = map_x.ptr<float>(y);
-        float* my = map_y.ptr<float>(y);
-        std::uint8_t* vis = visible.ptr<std::uint8_t>(y);
-        for (int x = 0; x < size.width; ++x) {
-          vis[x] = 0;
-          mx[x] = my[x] = -1000.f;
-          if (h[x] <= 0) continue;
-          const double depth = h[x] + offset;
-          Eigen::Vector3d ray = k_inv * Eigen::Vector3d(roi.x + x + 0.5, roi.y + y + 0.5, 1.0);
-          Eigen::Vector3d p = depth * (nb.rotation * ray) + nb.offset;
-          if (p.z() <= 1e-6) continue;
-          Eigen::Vector2d px = ncam.pixel(p);
-          mx[x] = static_cast<float>(px.x() - 0.5);
-          my[x] = static_cast<float>(px.y() - 0.5);
-          if (!ncam.in_image(px)) continue;
-          float nh = nhull.at<float>(static_cast<int>(px.y()), static_cast<int>(px.x()));
-          vis[x] = nh > 0 && p.z() <= nh + options.occlusion_margin;
-        }
-      }
-      cv::remap(nb.gray, warped, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_CONSTANT, 0);
-      mw = m.mul(warped);
-      window_sum(mw, s_w, r);
-      window_sum(mw.mul(warped), s_ww, r);
-      window_sum(mw.mul(ref_gray), s_gw, r);
-      for (int y = 0; y < size.height; ++y) {
-        const std::uint8_t* u = usable.ptr<std::uint8_t>(y);
-        const std::uint8_t* vis = visible.ptr<std::uint8_t>(y);
-        const float *sm = s_m.ptr<float>(y), *sg = s_g.ptr<float>(y), *rv = ref_var.ptr<float>(y);
-        const float *sw = s_w.ptr<float>(y), *sww = s_ww.ptr<float>(y), *sgw = s_gw.ptr<float>(y);
-        float* sn = sum_ncc.ptr<float>(y);
-        float* cn = count.ptr<float>(y);
-        for (int x = 0; x < size.width; ++x) {
-          if (!u[x] || !vis[x]) continue;
-          const float var_w = sww[x] - sw[x] * sw[x] / sm[x];
-          const float cov = sgw[x] - sg[x] * sw[x] / sm[x];
-          const float denom = std::sqrt(std::max(var_w, 1e-6f) * rv[x]);
-          const float ncc = cov / denom;
-          if (!best_neighbour) {
-            sn[x] += ncc;
-            cn[x] += 1;
-          } else if (cn[x] == 0 || ncc > sn[x]) {
-            sn[x] = ncc;
-            cn[x] = 1;
-          }
-        }
-      }
+  cv::Mat sum_ncc, count;
+  Best best;
+};
+
+// Where each reference pixel's hypothesis (the hull's depth + `offset`) lands in the
+// neighbour, and whether the neighbour can see it (not far behind its own hull surface there).
+void project_hypothesis(const Reference& ref, const Neighbour& nb, const Eigen::Matrix3d& k_inv,
+                        double offset, const DepthMapOptions& options, Sweep& s) {
+  const cv::Rect& roi = ref.roi;
+  const cv::Size size = ref.size;
+  const PinholeCamera& ncam = nb.view->camera;
+  const cv::Mat& nhull = nb.view->hull_depth;
+  for (int y = 0; y < size.height; ++y) {
+    const float* h = ref.hull.ptr<float>(y);
+    float* mx = s.map_x.ptr<float>(y);
+    float* my = s.map_y.ptr<float>(y);
+    std::uint8_t* vis = s.visible.ptr<std::uint8_t>(y);
+    for (int x = 0; x < size.width; ++x) {
+      vis[x] = 0;
+      mx[x] = my[x] = -1000.f;
+      if (h[x] <= 0) continue;
+      const double depth = h[x] + offset;
+      Eigen::Vector3d ray = k_inv * Eigen::Vector3d(roi.x + x + 0.5, roi.y + y + 0.5, 1.0);
+      Eigen::Vector3d p = depth * (nb.rotation * ray) + nb.offset;
+      if (p.z() <= 1e-6) continue;
+      Eigen::Vector2d px = ncam.pixel(p);
+      mx[x] = static_cast<float>(px.x() - 0.5);
+      my[x] = static_cast<float>(px.y() - 0.5);
+      if (!ncam.in_image(px)) continue;
+      float nh = nhull.at<float>(static_cast<int>(px.y()), static_cast<int>(px.x()));
+      vis[x] = nh > 0 && p.z() <= nh + options.occlusion_margin;
     }
-    // Track the best hypothesis per pixel.
-    for (int y = 0; y < size.height; ++y) {
-      const float* sn = sum_ncc.ptr<float>(y);
-      const float* cn = count.ptr<float>(y);
-      float* bs = best.score.ptr<float>(y);
-      float* bb = best.before.ptr<float>(y);
-      float* ba = best.after.ptr<float>(y);
-      int* bi = best.index.ptr<int>(y);
-      float* prev = best.previous.ptr<float>(y);
-      std::uint8_t* pending = best.after_pending.ptr<std::uint8_t>(y);
-      for (int x = 0; x < size.width; ++x) {
-        const float s = cn[x] > 0 ? sn[x] / cn[x] : -2.f;
-        if (pending[x]) {
-          ba[x] = s;
-          pending[x] = 0;
-        }
-        if (cn[x] > 0 && s > bs[x]) {
-          bs[x] = s;
-          bb[x] = prev[x];
-          bi[x] = k;
-          pending[x] = 1;
-        }
-        prev[x] = s;
+  }
+}
+
+// The neighbour's NCC with the reference at the projected hypothesis, added to the pixels'
+// sum (or kept when it is the best neighbour's so far).
+void add_ncc(const Reference& ref, const Neighbour& nb, const DepthMapOptions& options,
+             bool best_neighbour, Sweep& s) {
+  const int r = options.window_radius;
+  const cv::Size size = ref.size;
+  cv::remap(nb.gray, s.warped, s.map_x, s.map_y, cv::INTER_LINEAR, cv::BORDER_CONSTANT, 0);
+  s.mw = ref.m.mul(s.warped);
+  window_sum(s.mw, s.s_w, r);
+  window_sum(s.mw.mul(s.warped), s.s_ww, r);
+  window_sum(s.mw.mul(ref.gray), s.s_gw, r);
+  for (int y = 0; y < size.height; ++y) {
+    const std::uint8_t* u = ref.usable.ptr<std::uint8_t>(y);
+    const std::uint8_t* vis = s.visible.ptr<std::uint8_t>(y);
+    const float *sm = ref.s_m.ptr<float>(y), *sg = ref.s_g.ptr<float>(y), *rv = ref.ref_var.ptr<float>(y);
+    const float *sw = s.s_w.ptr<float>(y), *sww = s.s_ww.ptr<float>(y), *sgw = s.s_gw.ptr<float>(y);
+    float* sn = s.sum_ncc.ptr<float>(y);
+    float* cn = s.count.ptr<float>(y);
+    for (int x = 0; x < size.width; ++x) {
+      if (!u[x] || !vis[x]) continue;
+      const float var_w = sww[x] - sw[x] * sw[x] / sm[x];
+      const float cov = sgw[x] - sg[x] * sw[x] / sm[x];
+      const float denom = std::sqrt(std::max(var_w, 1e-6f) * rv[x]);
+      const float ncc = cov / denom;
+      if (!best_neighbour) {
+        sn[x] += ncc;
+        cn[x] += 1;
+      } else if (cn[x] == 0 || ncc > sn[x]) {
+        sn[x] = ncc;
+        cn[x] = 1;
       }
     }
   }
+}
 
-  // Depth at the best hypothesis, refined by a parabola through its neighbours' scores. A best
-  // at either end of the range is not a peak: the surface may lie beyond it.
+// Track the best hypothesis per pixel: hypothesis k's score against the best so far.
+void track_best(int k, const cv::Size size, Sweep& s) {
+  Best& best = s.best;
   for (int y = 0; y < size.height; ++y) {
-    const float* h = hull.ptr<float>(y);
-    const std::uint8_t* u = usable.ptr<std::uint8_t>(y);
+    const float* sn = s.sum_ncc.ptr<float>(y);
+    const float* cn = s.count.ptr<float>(y);
+    float* bs = best.score.ptr<float>(y);
+    float* bb = best.before.ptr<float>(y);
+    float* ba = best.after.ptr<float>(y);
+    int* bi = best.index.ptr<int>(y);
+    float* prev = best.previous.ptr<float>(y);
+    std::uint8_t* pending = best.after_pending.ptr<std::uint8_t>(y);
+    for (int x = 0; x < size.width; ++x) {
+      const float sc = cn[x] > 0 ? sn[x] / cn[x] : -2.f;
+      if (pending[x]) {
+        ba[x] = sc;
+        pending[x] = 0;
+      }
+      if (cn[x] > 0 && sc > bs[x]) {
+        bs[x] = sc;
+        bb[x] = prev[x];
+        bi[x] = k;
+        pending[x] = 1;
+      }
+      prev[x] = sc;
+    }
+  }
+}
+
+// Depth at the best hypothesis, refined by a parabola through its neighbours' scores. A best
+// at either end of the range is not a peak: the surface may lie beyond it.
+void refine_depths(const Reference& ref, const Best& best, int hypotheses,
+                   const DepthMapOptions& options, DepthMap& out) {
+  const cv::Rect& roi = ref.roi;
+  const cv::Size size = ref.size;
+  for (int y = 0; y < size.height; ++y) {
+    const float* h = ref.hull.ptr<float>(y);
+    const std::uint8_t* u = ref.usable.ptr<std::uint8_t>(y);
     const float* bs = best.score.ptr<float>(y);
     const float* bb = best.before.ptr<float>(y);
     const float* ba = best.after.ptr<float>(y);
@@ -238,6 +267,37 @@ DepthMap estimate_depth_map(const std::vector<StereoView>& views, int ref,
       score[x] = bs[x];
     }
   }
+}
+
+}  // namespace
+
+DepthMap estimate_depth_map(const std::vector<StereoView>& views, int ref,
+                            const std::vector<int>& neighbours, const DepthMapOptions& options) {
+  const StereoView& view = views[ref];
+  const PinholeCamera& cam = view.camera;
+  DepthMap out;
+  out.depth = cv::Mat::zeros(cam.height, cam.width, CV_32F);
+  out.score = cv::Mat(cam.height, cam.width, CV_32F, cv::Scalar(-1));
+  if (view.roi.empty() || neighbours.empty()) return out;
+
+  const Reference reference = reference_window(view, options);
+  const std::vector<Neighbour> nbs = neighbour_views(views, neighbours, cam, options);
+  const Eigen::Matrix3d k_inv = cam.K.inverse();
+  const int hypotheses =
+      static_cast<int>(std::floor((options.front_margin + options.search_depth) / options.step)) + 1;
+  Sweep sweep(reference.size);
+  const bool best_neighbour = options.neighbour_score == "best";
+  for (int k = 0; k < hypotheses; ++k) {
+    const double offset = -options.front_margin + k * options.step;
+    sweep.sum_ncc.setTo(0);
+    sweep.count.setTo(0);
+    for (const Neighbour& nb : nbs) {
+      project_hypothesis(reference, nb, k_inv, offset, options, sweep);
+      add_ncc(reference, nb, options, best_neighbour, sweep);
+    }
+    track_best(k, reference.size, sweep);
+  }
+  refine_depths(reference, sweep.best, hypotheses, options, out);
   return out;
 }
 

@@ -82,6 +82,12 @@ struct GuidedPassOptions {
   }
 };
 
+// How a frame's surface is made: the option `method` (ReconstructOptions::visit has the help).
+enum class Method { kStereo, kColmap, kVisualHull };
+
+// The method a `method` option names; throws ConfigError for another name.
+Method method_of(const std::string& name);
+
 // Reconstruct's options: the members visit() lists (their help is there), and theirs; the
 // others are tuned values, not options (docs/reconstruct.md, "Advanced").
 struct ReconstructOptions {

@@ -13,6 +13,7 @@
 #include <limits>
 #include <numbers>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 
 #include "pipeline/core/error.h"
 
@@ -416,6 +417,12 @@ struct StudioRenderer::Impl {
   float visibility(const Eigen::Vector3f& origin, RenderStats* stats) const;
   Shaded shade(const Eigen::Vector3d& o, const Eigen::Vector3d& d, float pixel_angle,
                RenderStats* stats) const;
+  std::optional<Shaded> shade_performer(const Eigen::Vector3d& o, const Eigen::Vector3d& d,
+                                        float pixel_angle, RenderStats* stats) const;
+  Shaded shade_studio(const Eigen::Vector3d& o, const Eigen::Vector3d& d, float pixel_angle,
+                      RenderStats* stats) const;
+  Eigen::Vector3f lit(const Eigen::Vector3f& albedo, const Eigen::Vector3d& p,
+                      const Eigen::Vector3d& n, RenderStats* stats) const;
 };
 
 namespace {
@@ -507,71 +514,11 @@ float StudioRenderer::Impl::visibility(const Eigen::Vector3f& origin, RenderStat
   return static_cast<float>(visible) / n;
 }
 
-// Colour seen along the ray (o, d), |d| = 1. `pixel_angle` is the angular size of one sample's
-// footprint [rad], for texture filtering.
-Shaded StudioRenderer::Impl::shade(const Eigen::Vector3d& o, const Eigen::Vector3d& d,
-                                   float pixel_angle, RenderStats* stats) const {
-  ++stats->camera_rays;
-  const float ambient = static_cast<float>(options.ambient);
-  const float key = 1.0f - ambient;
+namespace {
 
-  if (has_performer()) {
-    RTCIntersectContext context;
-    rtcInitIntersectContext(&context);
-    RTCRayHit rh;
-    rh.ray.org_x = static_cast<float>(o.x());
-    rh.ray.org_y = static_cast<float>(o.y());
-    rh.ray.org_z = static_cast<float>(o.z());
-    rh.ray.dir_x = static_cast<float>(d.x());
-    rh.ray.dir_y = static_cast<float>(d.y());
-    rh.ray.dir_z = static_cast<float>(d.z());
-    rh.ray.tnear = 0;
-    rh.ray.tfar = std::numeric_limits<float>::infinity();
-    rh.ray.time = 0;
-    rh.ray.mask = 0xffffffffu;
-    rh.ray.id = 0;
-    rh.ray.flags = 0;
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(scene, &context, &rh);
-    if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
-      const Tri& tri = triangles[rh.hit.primID];
-      const float u = rh.hit.u, v = rh.hit.v, w = 1 - u - v;
-      const Eigen::Vector3f df = d.cast<float>();
-      Eigen::Vector3f ng(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z);
-      ng.normalize();
-      Eigen::Vector3f n = (w * normals[tri[0]] + u * normals[tri[1]] + v * normals[tri[2]]);
-      n = n.squaredNorm() > 0 ? n.normalized() : ng;
-      if (ng.dot(df) > 0) {  // seen from inside (open mesh or back face): shade the side we see
-        ng = -ng;
-        n = -n;
-      }
-      const auto& uvs = corner_uv[rh.hit.primID];
-      const Eigen::Vector2f uv = w * uvs[0] + u * uvs[1] + v * uvs[2];
-      // Footprint of the sample on the surface, in metres, then in texels -> mip level.
-      const float cos_incidence = std::max(std::abs(ng.dot(df)), 0.25f);
-      const float footprint = rh.ray.tfar * pixel_angle / cos_incidence;
-      // The -0.5 bias keeps texture detail: the isotropic footprint over-blurs otherwise.
-      const float level =
-          std::log2(std::max(footprint, 1e-9f)) + log2_texels_per_metre[rh.hit.primID] - 0.5f;
-      const Eigen::Vector3f albedo = sample_texture(uv, level);
-
-      const Eigen::Vector3f p = (o + rh.ray.tfar * d).cast<float>();
-      const float n_dot_l = n.dot(light);
-      float direct = 0;
-      if (n_dot_l > 0 && ng.dot(light) > -0.2f) {
-        direct = n_dot_l * visibility(p + 1e-4f * ng, stats);
-      }
-      // Ambient a little stronger from above (sky/ceiling bounce) so shapes read in shadow.
-      const float fill = ambient * (0.85f + 0.15f * n.z());
-      return {albedo * (fill + key * direct), Surface::kPerformer, rh.ray.tfar};
-    }
-  }
-
-  // The studio: floor z = 0 inside a vertical cylinder of radius wall_distance (the screen or
-  // the room's wall, unbounded upwards so every ray ends on it), and the room's furniture.
-  const double radius = options.wall_distance;
-  const bool room = options.room();
+// Where the ray (o, d) meets the studio's wall, a vertical cylinder of radius `radius`
+// (unbounded upwards so every ray ends on it); infinity when it does not.
+double wall_hit(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double radius) {
   double t_wall = std::numeric_limits<double>::infinity();
   const double a = d.x() * d.x() + d.y() * d.y();
   if (a > 1e-12) {
@@ -583,6 +530,11 @@ Shaded StudioRenderer::Impl::shade(const Eigen::Vector3d& o, const Eigen::Vector
     if (disc >= 0) t_wall = (-b + std::sqrt(disc)) / a;
     if (t_wall <= 0) t_wall = std::numeric_limits<double>::infinity();
   }
+  return t_wall;
+}
+
+// Where the ray (o, d) meets the floor z = 0 inside the wall; infinity when it does not.
+double floor_hit(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double radius) {
   double t_floor = std::numeric_limits<double>::infinity();
   if (d.z() < 0 && o.z() > 0) {
     t_floor = -o.z() / d.z();
@@ -590,6 +542,103 @@ Shaded StudioRenderer::Impl::shade(const Eigen::Vector3d& o, const Eigen::Vector
     if (p.x() * p.x() + p.y() * p.y() > radius * radius)
       t_floor = std::numeric_limits<double>::infinity();
   }
+  return t_floor;
+}
+
+}  // namespace
+
+// Colour seen along the ray (o, d), |d| = 1. `pixel_angle` is the angular size of one sample's
+// footprint [rad], for texture filtering.
+Shaded StudioRenderer::Impl::shade(const Eigen::Vector3d& o, const Eigen::Vector3d& d,
+                                   float pixel_angle, RenderStats* stats) const {
+  ++stats->camera_rays;
+  if (has_performer()) {
+    if (const std::optional<Shaded> hit = shade_performer(o, d, pixel_angle, stats)) return *hit;
+  }
+  return shade_studio(o, d, pixel_angle, stats);
+}
+
+// The performer's colour where the ray hits it (textured, lit by the key light with its
+// shadows and the ambient light); nullopt where it misses.
+std::optional<Shaded> StudioRenderer::Impl::shade_performer(const Eigen::Vector3d& o,
+                                                            const Eigen::Vector3d& d,
+                                                            float pixel_angle,
+                                                            RenderStats* stats) const {
+  const float ambient = static_cast<float>(options.ambient);
+  const float key = 1.0f - ambient;
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  RTCRayHit rh;
+  rh.ray.org_x = static_cast<float>(o.x());
+  rh.ray.org_y = static_cast<float>(o.y());
+  rh.ray.org_z = static_cast<float>(o.z());
+  rh.ray.dir_x = static_cast<float>(d.x());
+  rh.ray.dir_y = static_cast<float>(d.y());
+  rh.ray.dir_z = static_cast<float>(d.z());
+  rh.ray.tnear = 0;
+  rh.ray.tfar = std::numeric_limits<float>::infinity();
+  rh.ray.time = 0;
+  rh.ray.mask = 0xffffffffu;
+  rh.ray.id = 0;
+  rh.ray.flags = 0;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(scene, &context, &rh);
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
+  const Tri& tri = triangles[rh.hit.primID];
+  const float u = rh.hit.u, v = rh.hit.v, w = 1 - u - v;
+  const Eigen::Vector3f df = d.cast<float>();
+  Eigen::Vector3f ng(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z);
+  ng.normalize();
+  Eigen::Vector3f n = (w * normals[tri[0]] + u * normals[tri[1]] + v * normals[tri[2]]);
+  n = n.squaredNorm() > 0 ? n.normalized() : ng;
+  if (ng.dot(df) > 0) {  // seen from inside (open mesh or back face): shade the side we see
+    ng = -ng;
+    n = -n;
+  }
+  const auto& uvs = corner_uv[rh.hit.primID];
+  const Eigen::Vector2f uv = w * uvs[0] + u * uvs[1] + v * uvs[2];
+  // Footprint of the sample on the surface, in metres, then in texels -> mip level.
+  const float cos_incidence = std::max(std::abs(ng.dot(df)), 0.25f);
+  const float footprint = rh.ray.tfar * pixel_angle / cos_incidence;
+  // The -0.5 bias keeps texture detail: the isotropic footprint over-blurs otherwise.
+  const float level =
+      std::log2(std::max(footprint, 1e-9f)) + log2_texels_per_metre[rh.hit.primID] - 0.5f;
+  const Eigen::Vector3f albedo = sample_texture(uv, level);
+
+  const Eigen::Vector3f p = (o + rh.ray.tfar * d).cast<float>();
+  const float n_dot_l = n.dot(light);
+  float direct = 0;
+  if (n_dot_l > 0 && ng.dot(light) > -0.2f) {
+    direct = n_dot_l * visibility(p + 1e-4f * ng, stats);
+  }
+  // Ambient a little stronger from above (sky/ceiling bounce) so shapes read in shadow.
+  const float fill = ambient * (0.85f + 0.15f * n.z());
+  return Shaded{albedo * (fill + key * direct), Surface::kPerformer, rh.ray.tfar};
+}
+
+// `albedo` at p (normal n) lit by the key light (with the performer's shadow) and the ambient
+// light.
+Eigen::Vector3f StudioRenderer::Impl::lit(const Eigen::Vector3f& albedo, const Eigen::Vector3d& p,
+                                          const Eigen::Vector3d& n, RenderStats* stats) const {
+  const float ambient = static_cast<float>(options.ambient);
+  const float key = 1.0f - ambient;
+  const float n_dot_l = n.cast<float>().dot(light);
+  float direct = 0;
+  if (n_dot_l > 0) direct = n_dot_l * visibility((p + 1e-4 * n).cast<float>(), stats);
+  return Eigen::Vector3f(albedo * (ambient + key * direct));
+}
+
+// The studio: floor z = 0 inside a vertical cylinder of radius wall_distance (the screen or
+// the room's wall, unbounded upwards so every ray ends on it), and the room's furniture.
+Shaded StudioRenderer::Impl::shade_studio(const Eigen::Vector3d& o, const Eigen::Vector3d& d,
+                                          float pixel_angle, RenderStats* stats) const {
+  const float ambient = static_cast<float>(options.ambient);
+  const float key = 1.0f - ambient;
+  const double radius = options.wall_distance;
+  const bool room = options.room();
+  const double t_wall = wall_hit(o, d, radius);
+  const double t_floor = floor_hit(o, d, radius);
   double t_box = std::numeric_limits<double>::infinity();
   const Furniture* piece = nullptr;
   Eigen::Vector3d box_normal = Eigen::Vector3d::Zero();
@@ -602,23 +651,17 @@ Shaded StudioRenderer::Impl::shade(const Eigen::Vector3d& o, const Eigen::Vector
       box_normal = n;
     }
   }
-  // Lit by the key light (with the performer's shadow) and the ambient light.
-  auto lit = [&](const Eigen::Vector3f& albedo, const Eigen::Vector3d& p, const Eigen::Vector3d& n) {
-    const float n_dot_l = n.cast<float>().dot(light);
-    float direct = 0;
-    if (n_dot_l > 0) direct = n_dot_l * visibility((p + 1e-4 * n).cast<float>(), stats);
-    return Eigen::Vector3f(albedo * (ambient + key * direct));
-  };
   if (piece && t_box < t_floor && t_box < t_wall) {
     const Eigen::Vector3d p = o + t_box * d;
     const float footprint = static_cast<float>(t_box * pixel_angle);
-    return {lit(furniture_albedo(*piece, p, footprint), p, box_normal), Surface::kFurniture, t_box};
+    return {lit(furniture_albedo(*piece, p, footprint), p, box_normal, stats), Surface::kFurniture,
+            t_box};
   }
   if (t_floor < t_wall) {
     const Eigen::Vector3d p = o + t_floor * d;
     const float footprint = static_cast<float>(t_floor * pixel_angle / std::max(-d.z(), 0.05));
     if (room) {
-      return {lit(room_floor_albedo(p.x(), p.y(), footprint), p, Eigen::Vector3d::UnitZ()),
+      return {lit(room_floor_albedo(p.x(), p.y(), footprint), p, Eigen::Vector3d::UnitZ(), stats),
               Surface::kFloor, t_floor};
     }
     const Eigen::Vector3f albedo = floor_albedo(paint.floor, p.x(), p.y(), footprint);
@@ -634,7 +677,8 @@ Shaded StudioRenderer::Impl::shade(const Eigen::Vector3d& o, const Eigen::Vector
     if (room) {
       const float footprint = static_cast<float>(t_wall * pixel_angle);
       const Eigen::Vector3d inward = -Eigen::Vector3d(p.x(), p.y(), 0).normalized();
-      return {lit(room_wall_albedo(std::atan2(p.y(), p.x()), p.z(), radius, footprint), p, inward),
+      return {lit(room_wall_albedo(std::atan2(p.y(), p.x()), p.z(), radius, footprint), p, inward,
+                  stats),
               Surface::kWall, t_wall};
     }
     return {backdrop_color(paint.wall, std::atan2(p.y(), p.x()), p.z(), options.backdrop_variation),

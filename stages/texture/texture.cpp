@@ -64,6 +64,166 @@ json atlas_summary(const Atlas& atlas, const TexelMap& texels, const AtlasOption
                            (static_cast<double>(atlas.resolution) * atlas.resolution)}};
 }
 
+// The atlas built for the template, and the texels it maps onto the surface (logged).
+struct TemplateAtlas {
+  Atlas atlas;
+  TexelMap texels;
+};
+
+TemplateAtlas build_template_atlas(const Mesh& templ, const AtlasOptions& options) {
+  log::Timer atlas_timer;
+  TemplateAtlas a{build_atlas(templ, options), {}};
+  const Atlas& atlas = a.atlas;
+  a.texels = map_texels(atlas, templ.triangles);
+  const TexelMap& texels = a.texels;
+  if (texels.overlapping > 0) {  // a fold of near-degenerate triangles; reported in atlas.json
+    log::warn("atlas: {} texel centres lie strictly inside two triangles", texels.overlapping);
+  }
+  log::info("atlas: {} charts ({} splits), L2 stretch {:.3f} (worst chart {:.3f}), {} flipped, "
+            "{:.1f} % of {}x{} texels on the surface, {:.0f} texels/m ({:.1f} s)",
+            atlas.charts.size(), atlas.splits, atlas.stretch, atlas.max_stretch,
+            atlas.flipped_faces, 100.0 * texels.size() / (double(atlas.resolution) * atlas.resolution),
+            atlas.resolution, atlas.resolution, atlas.texels_per_metre, atlas_timer.seconds());
+  return a;
+}
+
+// What the frames add up to for report.json and the log.
+struct Totals {
+  json skipped = json::array();
+  double seconds = 0, unseen_sum = 0, unseen_max = 0, seam_before = 0, seam_after = 0;
+  int frames_done = 0;
+};
+
+// Every frame of every take baked into the staged folder, and what it adds to the report.
+class FrameBaker {
+ public:
+  FrameBaker(const Session& session, const std::vector<Camera>& cameras, const TemplateAtlas& a,
+             const Mesh& templ, const TextureOptions& options, const std::string& extension,
+             const fs::path& staged)
+      : session_(session),
+        cameras_(cameras),
+        a_(a),
+        templ_(templ),
+        options_(options),
+        extension_(extension),
+        staged_(staged) {}
+
+  // The take's frames; returns their records.
+  json bake_take(const timewarp::AlignedInput& input, const std::string& take);
+  const Totals& totals() const { return totals_; }
+
+ private:
+  std::vector<View> frame_views(const std::string& take, int f, json& frame_skipped);
+  json bake_frame(const std::string& take, int f, const Eigen::Matrix3Xd& frame);
+
+  const Session& session_;
+  const std::vector<Camera>& cameras_;
+  const TemplateAtlas& a_;
+  const Mesh& templ_;
+  const TextureOptions& options_;
+  const std::string& extension_;
+  const fs::path staged_;
+  Totals totals_;
+};
+
+json FrameBaker::bake_take(const timewarp::AlignedInput& input, const std::string& take) {
+  const std::vector<Eigen::Matrix3Xd> frames = timewarp::load_take(input, take);
+  log::Progress progress(fmt::format("texture {}", take), frames.size());
+  json take_report = json::array();
+  for (int f = 0; f < static_cast<int>(frames.size()); ++f) {
+    take_report.push_back(bake_frame(take, f, frames[f]));
+    progress.step();
+  }
+  return take_report;
+}
+
+// The frame's camera images; a missing or broken one is skipped (and listed) this frame.
+std::vector<View> FrameBaker::frame_views(const std::string& take, int f, json& frame_skipped) {
+  std::vector<cv::Mat> images(cameras_.size());
+  std::vector<std::string> problems(cameras_.size());
+  tbb::parallel_for(std::size_t{0}, cameras_.size(), [&](std::size_t c) {
+    try {
+      images[c] = read_capture_image(session_, cameras_[c], take, f);
+    } catch (const Error& e) {  // a missing or broken image: skip that camera this frame
+      problems[c] = e.what();
+    }
+  });
+  std::vector<View> views;
+  for (std::size_t c = 0; c < cameras_.size(); ++c) {
+    if (!problems[c].empty()) {
+      log::warn("take {} frame {}: camera {} skipped: {}", take, frame_name(f),
+                cameras_[c].name, problems[c]);
+      totals_.skipped.push_back({{"take", take}, {"frame", f}, {"camera", cameras_[c].name},
+                                 {"reason", problems[c]}});
+      frame_skipped.push_back(cameras_[c].name);
+      continue;
+    }
+    views.push_back({&cameras_[c], images[c]});
+  }
+  return views;
+}
+
+// One frame baked and written (texture and unseen mask); returns its record.
+json FrameBaker::bake_frame(const std::string& take, int f, const Eigen::Matrix3Xd& frame) {
+  log::Timer timer;
+  json frame_skipped = json::array();
+  const std::vector<View> views = frame_views(take, f, frame_skipped);
+  std::vector<Vec3f> positions(frame.cols());
+  for (Eigen::Index v = 0; v < frame.cols(); ++v) positions[v] = frame.col(v).cast<float>();
+  BakedTexture baked;
+  try {
+    baked = bake_texture(a_.atlas, a_.texels, positions, templ_.triangles, views, options_.bake);
+  } catch (const InputError& e) {
+    throw InputError(fmt::format("take {} frame {}: {}", take, frame_name(f), e.what()));
+  }
+  write_texture(staged_ / take / (frame_name(f) + extension_),
+                texture_for_output(baked.color, options_.format == "exr"));
+  write_texture(staged_ / take / "unseen" / (frame_name(f) + ".png"), baked.unseen);
+  const double frame_seconds = timer.seconds();
+  const double unseen = baked.texels ? double(baked.unseen_texels) / baked.texels : 0.0;
+  json used = json::object();
+  for (std::size_t v = 0; v < views.size(); ++v) used[views[v].camera->name] = baked.texels_per_view[v];
+  log::debug("take {} frame {}: {} cameras, {:.2f} % unseen, seams {:.2f} -> {:.2f}, {:.2f} s",
+             take, frame_name(f), views.size(), 100 * unseen, baked.seam_rms_before,
+             baked.seam_rms_after, frame_seconds);
+  totals_.seconds += frame_seconds;
+  totals_.unseen_sum += unseen;
+  totals_.unseen_max = std::max(totals_.unseen_max, unseen);
+  totals_.seam_before += baked.seam_rms_before;
+  totals_.seam_after += baked.seam_rms_after;
+  ++totals_.frames_done;
+  return {{"frame", f},
+          {"unseen_texels", baked.unseen_texels},
+          {"unseen_fraction", unseen},
+          {"texels_per_camera", used},
+          {"skipped_cameras", frame_skipped},
+          {"seam_rms_before", baked.seam_rms_before},
+          {"seam_rms_after", baked.seam_rms_after},
+          {"seconds", frame_seconds}};
+}
+
+// The atlas as the template with its texture coordinates, its summary and its picture.
+void write_atlas_files(const fs::path& dir, const Mesh& templ, const TemplateAtlas& a,
+                       const AtlasOptions& options, const std::string& texture) {
+  Mesh atlas_mesh = with_atlas_uvs(templ, a.atlas);
+  atlas_mesh.texture = texture;  // for MeshLab
+  write_ply(dir / "atlas.ply", atlas_mesh);
+  write_file_atomic(dir / "atlas.json", atlas_summary(a.atlas, a.texels, options).dump(1));
+  write_texture(dir / "atlas.png", atlas_picture(a.atlas, a.texels));
+}
+
+// report.json's figures over the frames: their means, the worst, the skipped images.
+void add_totals(json& report, const Totals& t) {
+  const double n = std::max(t.frames_done, 1);
+  report["frames"] = t.frames_done;
+  report["seconds_per_frame"] = t.seconds / n;
+  report["unseen_fraction_mean"] = t.unseen_sum / n;
+  report["unseen_fraction_max"] = t.unseen_max;
+  report["seam_rms_before"] = t.seam_before / n;
+  report["seam_rms_after"] = t.seam_after / n;
+  report["skipped_cameras"] = t.skipped;
+}
+
 }  // namespace
 
 void TextureOptions::check() const {
@@ -85,116 +245,30 @@ void run_texture(const Session& session, const StageArgs& args) {
   const Mesh& templ = input.template_mesh;
   const std::vector<Camera> cameras = read_colmap_model(session.calibration_dir());
   const std::vector<std::string> takes = aligned_takes(in);
-
-  log::Timer atlas_timer;
-  const Atlas atlas = build_atlas(templ, options.atlas);
-  const TexelMap texels = map_texels(atlas, templ.triangles);
-  if (texels.overlapping > 0) {  // a fold of near-degenerate triangles; reported in atlas.json
-    log::warn("atlas: {} texel centres lie strictly inside two triangles", texels.overlapping);
-  }
-  log::info("atlas: {} charts ({} splits), L2 stretch {:.3f} (worst chart {:.3f}), {} flipped, "
-            "{:.1f} % of {}x{} texels on the surface, {:.0f} texels/m ({:.1f} s)",
-            atlas.charts.size(), atlas.splits, atlas.stretch, atlas.max_stretch,
-            atlas.flipped_faces, 100.0 * texels.size() / (double(atlas.resolution) * atlas.resolution),
-            atlas.resolution, atlas.resolution, atlas.texels_per_metre, atlas_timer.seconds());
+  const TemplateAtlas a = build_template_atlas(templ, options.atlas);
 
   StagedFolder staged(out);
-  Mesh atlas_mesh = with_atlas_uvs(templ, atlas);
-  atlas_mesh.texture = takes.front() + "/" + frame_name(0) + extension;  // for MeshLab
-  write_ply(staged.path() / "atlas.ply", atlas_mesh);
-  write_file_atomic(staged.path() / "atlas.json",
-                    atlas_summary(atlas, texels, options.atlas).dump(1));
-  write_texture(staged.path() / "atlas.png", atlas_picture(atlas, texels));
-
+  write_atlas_files(staged.path(), templ, a, options.atlas,
+                    takes.front() + "/" + frame_name(0) + extension);
   json report;
   std::error_code ec;
   report["input"] = fs::relative(in, session.root(), ec).generic_string();
   report["extension"] = extension;
-  report["resolution"] = atlas.resolution;
-  json skipped = json::array();
-  double seconds = 0, unseen_sum = 0, unseen_max = 0, seam_before = 0, seam_after = 0;
-  int frames_done = 0;
-  for (const std::string& take : takes) {
-    const std::vector<Eigen::Matrix3Xd> frames = timewarp::load_take(input, take);
-    log::Progress progress(fmt::format("texture {}", take), frames.size());
-    json take_report = json::array();
-    for (int f = 0; f < static_cast<int>(frames.size()); ++f) {
-      log::Timer timer;
-      std::vector<cv::Mat> images(cameras.size());
-      std::vector<std::string> problems(cameras.size());
-      tbb::parallel_for(std::size_t{0}, cameras.size(), [&](std::size_t c) {
-        try {
-          images[c] = read_capture_image(session, cameras[c], take, f);
-        } catch (const Error& e) {  // a missing or broken image: skip that camera this frame
-          problems[c] = e.what();
-        }
-      });
-      std::vector<View> views;
-      json frame_skipped = json::array();
-      for (std::size_t c = 0; c < cameras.size(); ++c) {
-        if (!problems[c].empty()) {
-          log::warn("take {} frame {}: camera {} skipped: {}", take, frame_name(f),
-                    cameras[c].name, problems[c]);
-          skipped.push_back({{"take", take}, {"frame", f}, {"camera", cameras[c].name},
-                             {"reason", problems[c]}});
-          frame_skipped.push_back(cameras[c].name);
-          continue;
-        }
-        views.push_back({&cameras[c], images[c]});
-      }
-      std::vector<Vec3f> positions(frames[f].cols());
-      for (Eigen::Index v = 0; v < frames[f].cols(); ++v) positions[v] = frames[f].col(v).cast<float>();
-      BakedTexture baked;
-      try {
-        baked = bake_texture(atlas, texels, positions, templ.triangles, views, options.bake);
-      } catch (const InputError& e) {
-        throw InputError(fmt::format("take {} frame {}: {}", take, frame_name(f), e.what()));
-      }
-      write_texture(staged.path() / take / (frame_name(f) + extension),
-                    texture_for_output(baked.color, options.format == "exr"));
-      write_texture(staged.path() / take / "unseen" / (frame_name(f) + ".png"), baked.unseen);
-      const double frame_seconds = timer.seconds();
-      const double unseen = baked.texels ? double(baked.unseen_texels) / baked.texels : 0.0;
-      json used = json::object();
-      for (std::size_t v = 0; v < views.size(); ++v) used[views[v].camera->name] = baked.texels_per_view[v];
-      take_report.push_back({{"frame", f},
-                             {"unseen_texels", baked.unseen_texels},
-                             {"unseen_fraction", unseen},
-                             {"texels_per_camera", used},
-                             {"skipped_cameras", frame_skipped},
-                             {"seam_rms_before", baked.seam_rms_before},
-                             {"seam_rms_after", baked.seam_rms_after},
-                             {"seconds", frame_seconds}});
-      log::debug("take {} frame {}: {} cameras, {:.2f} % unseen, seams {:.2f} -> {:.2f}, {:.2f} s",
-                 take, frame_name(f), views.size(), 100 * unseen, baked.seam_rms_before,
-                 baked.seam_rms_after, frame_seconds);
-      seconds += frame_seconds;
-      unseen_sum += unseen;
-      unseen_max = std::max(unseen_max, unseen);
-      seam_before += baked.seam_rms_before;
-      seam_after += baked.seam_rms_after;
-      ++frames_done;
-      progress.step();
-    }
-    report["takes"][take] = take_report;
-  }
-  const double n = std::max(frames_done, 1);
-  report["frames"] = frames_done;
-  report["seconds_per_frame"] = seconds / n;
-  report["unseen_fraction_mean"] = unseen_sum / n;
-  report["unseen_fraction_max"] = unseen_max;
-  report["seam_rms_before"] = seam_before / n;
-  report["seam_rms_after"] = seam_after / n;
-  report["skipped_cameras"] = skipped;
+  report["resolution"] = a.atlas.resolution;
+  FrameBaker baker(session, cameras, a, templ, options, extension, staged.path());
+  for (const std::string& take : takes) report["takes"][take] = baker.bake_take(input, take);
+  const Totals& t = baker.totals();
+  add_totals(report, t);
   write_file_atomic(staged.path() / "report.json", report.dump(1));
   YAML::Emitter emitter;
   emitter << to_yaml(options);
   write_file_atomic(staged.path() / "options.yaml", std::string(emitter.c_str()) + "\n");
   staged.commit();
+  const double n = std::max(t.frames_done, 1);
   log::info("{} frames textured: {:.2f} s per frame, unseen texels {:.2f} % (worst frame "
             "{:.2f} %), seams {:.2f} -> {:.2f} levels, {} camera images skipped; wrote {}",
-            frames_done, seconds / n, 100 * unseen_sum / n, 100 * unseen_max, seam_before / n,
-            seam_after / n, skipped.size(), out.string());
+            t.frames_done, t.seconds / n, 100 * t.unseen_sum / n, 100 * t.unseen_max, t.seam_before / n,
+            t.seam_after / n, t.skipped.size(), out.string());
 }
 
 }  // namespace fourd::texture

@@ -219,13 +219,287 @@ double truth_height_mm(const Session& session) {
   return mesh.positions.empty() ? 0.0 : 1000.0 * (hi.z() - lo.z());
 }
 
+// The sampled frames' meshes and hulls compared, pooled overall and per take.
+struct Pooled {
+  Distances all_mesh, all_hull;
+  std::map<std::string, Distances> take_mesh, take_hull;
+  int missing = 0, compared = 0;
+};
+
+// What validating reconstruct shares across its output folders.
+struct Inputs {
+  fs::path truth_dir;
+  std::vector<std::string> takes;
+  std::vector<Camera> cameras;
+  double height_mm = 0;
+};
+
+// The checks of one output folder (reconstruct/ or reconstruct_oracle/): its metrics, tables
+// and pictures added to the report.
+class VariantCheck {
+ public:
+  VariantCheck(const ValidationContext& ctx, const Inputs& in, const Variant& variant,
+               StageReport& report, std::string& details)
+      : ctx_(ctx),
+        in_(in),
+        variant_(variant),
+        out_dir_(ctx.session.root() / variant.dir),
+        report_(report),
+        details_(details) {}
+
+  // Every step; returns the folder's line of the summary.
+  std::string run();
+
+ private:
+  void add(const std::string& name, double value, const std::string& meaning) {
+    report_.metrics.push_back({name, value, variant_.input, meaning});
+  }
+  void compare_frames();
+  Pooled pool() const;
+  Scores add_scores(const std::string& prefix, const Distances& d, const std::string& what);
+  void add_take_table(const Pooled& pooled);
+  int add_times();
+  void add_run_record();
+  void add_heat_maps();
+  cv::Mat heat_map_picture(const std::string& take, const FrameJob& job) const;
+
+  const ValidationContext& ctx_;
+  const Inputs& in_;
+  const Variant& variant_;
+  const fs::path out_dir_;
+  StageReport& report_;
+  std::string& details_;
+  std::vector<FrameJob> jobs_;
+};
+
+std::string VariantCheck::run() {
+  compare_frames();
+  const Pooled pooled = pool();
+  if (pooled.compared > 0) add_scores("", pooled.all_mesh, "the final mesh");
+  if (!pooled.all_hull.accuracy.empty()) add_scores("visual_hull.", pooled.all_hull, "the visual hull");
+  add("frames_compared", pooled.compared, "sampled frames with a reconstructed mesh");
+  add("frames_missing", pooled.missing,
+      "sampled ground-truth frames without a reconstructed mesh (skipped or not run)");
+  add_take_table(pooled);
+  const int skipped = add_times();
+  add_run_record();
+  add("frames_skipped", skipped, "frames the stage reported as not reconstructable");
+  const std::string summary = fmt::format("{}: {} sampled frame(s) compared, {} missing",
+                                          variant_.dir, pooled.compared, pooled.missing);
+  if (variant_.input == InputKind::kPipeline && !in_.cameras.empty()) add_heat_maps();
+  return summary;
+}
+
+// The sampled frames of every take, their final mesh and hull compared with the truth.
+void VariantCheck::compare_frames() {
+  for (const std::string& take : in_.takes) {
+    for (int f : sample_frames(frame_count(in_.truth_dir / take, ".ply"), ctx_.options.frames_per_take)) {
+      FrameJob job;
+      job.take = take;
+      job.frame = f;
+      jobs_.push_back(std::move(job));
+    }
+  }
+  tbb::parallel_for(std::size_t{0}, jobs_.size(), [&](std::size_t i) {
+    FrameJob& job = jobs_[i];
+    const std::string file = frame_name(job.frame) + ".ply";
+    const fs::path mesh_path = out_dir_ / job.take / file;
+    const fs::path hull_path = out_dir_ / "visual_hull" / job.take / file;
+    job.has_mesh = fs::exists(mesh_path);
+    job.has_hull = fs::exists(hull_path);
+    if (!job.has_mesh && !job.has_hull) return;
+    const Mesh truth = read_ply(in_.truth_dir / job.take / file);
+    const MeshQuery to_truth(truth);
+    const unsigned seed = static_cast<unsigned>(1000 * i + 17);
+    if (job.has_mesh) job.mesh = compare(read_ply(mesh_path), truth, to_truth, seed);
+    if (job.has_hull) job.hull = compare(read_ply(hull_path), truth, to_truth, seed);
+  });
+}
+
+// Pool the samples: overall and per take, for the final mesh and the hull.
+Pooled VariantCheck::pool() const {
+  Pooled p;
+  for (const FrameJob& job : jobs_) {
+    if (!job.has_mesh) ++p.missing;
+    if (job.has_mesh) {
+      ++p.compared;
+      p.all_mesh.append(job.mesh);
+      p.take_mesh[job.take].append(job.mesh);
+    }
+    if (job.has_hull) {
+      p.all_hull.append(job.hull);
+      p.take_hull[job.take].append(job.hull);
+    }
+  }
+  return p;
+}
+
+// The scores of `d` as metrics named `prefix`...; returns them.
+Scores VariantCheck::add_scores(const std::string& prefix, const Distances& d,
+                                const std::string& what) {
+  const Scores s = Scores::of(d, in_.height_mm);
+  add(prefix + "accuracy_median_mm", s.accuracy_median,
+      "median distance of " + what + " surface samples to the true surface [mm]");
+  add(prefix + "accuracy_p90_mm", s.accuracy_p90, "90th percentile of that distance [mm]");
+  add(prefix + "completeness_10mm", s.completeness,
+      "fraction of true-surface samples within 10 mm of " + what);
+  add(prefix + "fscore_5mm", s.fscore, "F-score of precision and recall at 5 mm (" + what + ")");
+  if (in_.height_mm > 0) {
+    add(prefix + "accuracy_median_pct_height", 100 * s.accuracy_median / in_.height_mm,
+        "median distance of " + what + " surface samples to the true surface [% of the "
+        "subject's height]");
+    add(prefix + "accuracy_p90_pct_height", 100 * s.accuracy_p90 / in_.height_mm,
+        "90th percentile of that distance [% of the subject's height]");
+    add(prefix + "completeness_0p6pct_height", s.completeness_relative,
+        "fraction of true-surface samples within 0.6 % of the subject's height of " + what);
+  }
+  return s;
+}
+
+// Per take: the scores as metrics and a table of final mesh / visual hull.
+void VariantCheck::add_take_table(const Pooled& pooled) {
+  std::string table = fmt::format(
+      "{} ({}): per take, final mesh / visual hull\n\n| take | frames | accuracy median mm | "
+      "accuracy p90 mm | completeness 10 mm | F-score 5 mm |\n|---|---:|---:|---:|---:|---:|\n",
+      variant_.dir, variant_.input == InputKind::kOracle ? "oracle" : "pipeline");
+  for (const std::string& take : in_.takes) {
+    if (!pooled.take_mesh.count(take)) continue;
+    const Scores m = add_scores(take + ".", pooled.take_mesh.at(take), "the final mesh");
+    Scores h;
+    if (pooled.take_hull.count(take)) {
+      h = add_scores("visual_hull." + take + ".", pooled.take_hull.at(take), "the visual hull");
+    }
+    int frames = 0;
+    for (const FrameJob& j : jobs_) frames += j.take == take && j.has_mesh;
+    table += fmt::format("| {} | {} | {:.2f} / {:.2f} | {:.2f} / {:.2f} | {:.3f} / {:.3f} | {:.3f} / {:.3f} |\n",
+                         take, frames, m.accuracy_median, h.accuracy_median, m.accuracy_p90,
+                         h.accuracy_p90, m.completeness, h.completeness, m.fscore, h.fscore);
+  }
+  details_ += table + "\n";
+}
+
+// Time: every per-frame record of the stage (not only the sampled frames). Returns the frames
+// the records say were skipped.
+int VariantCheck::add_times() {
+  std::error_code ec;
+  double seconds = 0;
+  int timed = 0, skipped = 0;
+  std::map<std::string, double> steps;
+  for (const std::string& take : subfolders(out_dir_)) {
+    if (!fs::is_directory(out_dir_ / take, ec)) continue;
+    for (const auto& e : fs::directory_iterator(out_dir_ / take)) {
+      if (e.path().extension() != ".json") continue;
+      nlohmann::json j;
+      try {
+        j = nlohmann::json::parse(read_file(e.path()));
+      } catch (const std::exception&) {
+        continue;
+      }
+      if (!j.is_object() || !j.contains("seconds_total")) continue;
+      if (!j.value("reconstructed", false)) {
+        ++skipped;
+        continue;
+      }
+      seconds += j["seconds_total"].get<double>();
+      ++timed;
+      for (const auto& [step, s] : j["seconds"].items()) steps[step] += s.get<double>();
+    }
+  }
+  if (timed > 0) {
+    add("seconds_per_frame", seconds / timed,
+        "mean time to reconstruct one frame (sum of its steps, from the per-frame records) [s]");
+    std::string st = "| step | mean seconds per frame |\n|---|---:|\n";
+    for (const auto& [step, s] : steps) st += fmt::format("| {} | {:.3f} |\n", step, s / timed);
+    details_ += fmt::format("{}: time per step over {} frame(s)\n\n{}\n", variant_.dir, timed, st);
+  }
+  return skipped;
+}
+
+// What the stage's report.json says of its last run.
+void VariantCheck::add_run_record() {
+  try {
+    const nlohmann::json run = nlohmann::json::parse(read_file(out_dir_ / "report.json")).at("run");
+    add("wall_seconds_per_frame", run.at("seconds_per_frame").get<double>(),
+        "wall-clock time of the last run divided by its frames (frames run in parallel) [s]");
+  } catch (const std::exception&) {
+  }
+  try {
+    const nlohmann::json summary =
+        nlohmann::json::parse(read_file(out_dir_ / "report.json")).at("summary");
+    add("frames_flagged", summary.at("frames_flagged").get<double>(),
+        "frames whose result the stage flagged as disagreeing with their silhouettes");
+    add("scale_factor", summary.at("scale_factor").get<double>(),
+        "the factor the stage scaled its unset lengths by (subject size / 1.75 m)");
+  } catch (const std::exception&) {
+  }
+}
+
+// Heat-maps: one frame per take (the middle sampled one), final mesh and hull side by side.
+void VariantCheck::add_heat_maps() {
+  const int pictured = std::min<int>(ctx_.options.picture_takes, static_cast<int>(in_.takes.size()));
+  for (int t = 0; t < pictured; ++t) {
+    const std::string& take = in_.takes[t];
+    std::vector<const FrameJob*> frames;
+    for (const FrameJob& j : jobs_) {
+      if (j.take == take && j.has_mesh) frames.push_back(&j);
+    }
+    if (frames.empty()) continue;
+    const FrameJob& job = *frames[frames.size() / 2];
+    const cv::Mat picture = heat_map_picture(take, job);
+    Picture p;
+    p.file = fmt::format("reconstruct_error_{}.png", take);
+    write_image_atomic(ctx_.reports_dir / p.file, picture);
+    p.caption = fmt::format(
+        "reconstruct, take {} frame {}: distance to the true surface (blue 0, red >= {:.0f} mm) "
+        "of the final mesh (left) and of the visual hull (right)",
+        take, job.frame, kHeatMaxMm);
+    report_.pictures.push_back(p);
+  }
+}
+
+// The frame's final mesh and hull coloured by their distance to the truth, seen by a few
+// cameras, over the colour bar.
+cv::Mat VariantCheck::heat_map_picture(const std::string& take, const FrameJob& job) const {
+  const std::vector<Camera>& cameras = in_.cameras;
+  const std::string file = frame_name(job.frame) + ".ply";
+  const Mesh truth = read_ply(in_.truth_dir / take / file);
+  const MeshQuery to_truth(truth);
+  std::vector<std::pair<std::string, Mesh>> meshes = {{"final mesh", read_ply(out_dir_ / take / file)}};
+  if (job.has_hull) meshes.push_back({"visual hull", read_ply(out_dir_ / "visual_hull" / take / file)});
+  const int count = std::min<int>(ctx_.options.picture_cameras, static_cast<int>(cameras.size()));
+  const double scale =
+      std::min(1.0, double(ctx_.options.panel_width) / cameras[0].intrinsics.width) *
+      (cameras[0].intrinsics.width < 400 ? 1.5 : 1.0);
+  std::vector<cv::Mat> rows;
+  for (int i = 0; i < count; ++i) {
+    const Camera& camera = cameras[static_cast<std::size_t>(i) * cameras.size() / count];
+    std::vector<cv::Mat> panels;
+    for (const auto& [name, surface] : meshes) {
+      const Mesh& mesh = surface;  // a lambda cannot capture a structured binding (C++17)
+      std::vector<double> mm(mesh.positions.size());
+      tbb::parallel_for(std::size_t{0}, mm.size(),
+                        [&](std::size_t v) { mm[v] = 1000 * to_truth.distance(mesh.positions[v]); });
+      panels.push_back(heat_map(camera, mesh, mm, scale,
+                                fmt::format("{} {} frame {}: {}", take, camera.name, job.frame, name)));
+    }
+    cv::Mat row;
+    cv::hconcat(panels, row);
+    rows.push_back(row);
+  }
+  rows.push_back(colour_bar(rows[0].cols));
+  cv::Mat picture;
+  cv::vconcat(rows, picture);
+  return picture;
+}
+
 }  // namespace
 
 StageReport validate_reconstruct(const ValidationContext& ctx) {
   const Session& session = ctx.session;
   StageReport report;
   report.stage = "reconstruct";
-  const fs::path truth_dir = session.ground_truth_dir() / "meshes";
+  Inputs in;
+  in.truth_dir = session.ground_truth_dir() / "meshes";
   std::vector<Variant> variants;
   std::error_code ec;
   for (const Variant& v : {Variant{"reconstruct", InputKind::kPipeline},
@@ -236,8 +510,8 @@ StageReport validate_reconstruct(const ValidationContext& ctx) {
     report.summary = "Skipped: no reconstruct/ output.";
     return report;
   }
-  const std::vector<std::string> takes = subfolders(truth_dir);
-  if (takes.empty()) {
+  in.takes = subfolders(in.truth_dir);
+  if (in.takes.empty()) {
     report.summary = "Skipped: no ground_truth/meshes/ (not a synthetic session).";
     return report;
   }
@@ -245,202 +519,17 @@ StageReport validate_reconstruct(const ValidationContext& ctx) {
   const fs::path calibration = fs::exists(session.ground_truth_dir() / "calibration" / "cameras.txt", ec)
                                    ? session.ground_truth_dir() / "calibration"
                                    : session.calibration_dir();
-  const std::vector<Camera> cameras = read_colmap_model(calibration);
-  const double height_mm = truth_height_mm(session);
-  if (height_mm > 0) {
-    report.metrics.push_back({"subject_height_mm", height_mm, InputKind::kPipeline,
+  in.cameras = read_colmap_model(calibration);
+  in.height_mm = truth_height_mm(session);
+  if (in.height_mm > 0) {
+    report.metrics.push_back({"subject_height_mm", in.height_mm, InputKind::kPipeline,
                               "height of the true subject (its rest pose) [mm]"});
   }
 
-  auto add = [&](const std::string& name, double value, InputKind input, const std::string& meaning) {
-    report.metrics.push_back({name, value, input, meaning});
-  };
   std::string details;
   std::vector<std::string> summaries;
   for (const Variant& variant : variants) {
-    const fs::path out_dir = session.root() / variant.dir;
-    std::vector<FrameJob> jobs;
-    for (const std::string& take : takes) {
-      for (int f : sample_frames(frame_count(truth_dir / take, ".ply"), ctx.options.frames_per_take)) {
-        FrameJob job;
-        job.take = take;
-        job.frame = f;
-        jobs.push_back(std::move(job));
-      }
-    }
-    tbb::parallel_for(std::size_t{0}, jobs.size(), [&](std::size_t i) {
-      FrameJob& job = jobs[i];
-      const std::string file = frame_name(job.frame) + ".ply";
-      const fs::path mesh_path = out_dir / job.take / file;
-      const fs::path hull_path = out_dir / "visual_hull" / job.take / file;
-      job.has_mesh = fs::exists(mesh_path);
-      job.has_hull = fs::exists(hull_path);
-      if (!job.has_mesh && !job.has_hull) return;
-      const Mesh truth = read_ply(truth_dir / job.take / file);
-      const MeshQuery to_truth(truth);
-      const unsigned seed = static_cast<unsigned>(1000 * i + 17);
-      if (job.has_mesh) job.mesh = compare(read_ply(mesh_path), truth, to_truth, seed);
-      if (job.has_hull) job.hull = compare(read_ply(hull_path), truth, to_truth, seed);
-    });
-
-    // Pool the samples: overall and per take, for the final mesh and the hull.
-    Distances all_mesh, all_hull;
-    std::map<std::string, Distances> take_mesh, take_hull;
-    int missing = 0, compared = 0;
-    for (const FrameJob& job : jobs) {
-      if (!job.has_mesh) ++missing;
-      if (job.has_mesh) {
-        ++compared;
-        all_mesh.append(job.mesh);
-        take_mesh[job.take].append(job.mesh);
-      }
-      if (job.has_hull) {
-        all_hull.append(job.hull);
-        take_hull[job.take].append(job.hull);
-      }
-    }
-    const InputKind in = variant.input;
-    auto add_scores = [&](const std::string& prefix, const Distances& d, const std::string& what) {
-      const Scores s = Scores::of(d, height_mm);
-      add(prefix + "accuracy_median_mm", s.accuracy_median, in,
-          "median distance of " + what + " surface samples to the true surface [mm]");
-      add(prefix + "accuracy_p90_mm", s.accuracy_p90, in,
-          "90th percentile of that distance [mm]");
-      add(prefix + "completeness_10mm", s.completeness, in,
-          "fraction of true-surface samples within 10 mm of " + what);
-      add(prefix + "fscore_5mm", s.fscore, in, "F-score of precision and recall at 5 mm (" + what + ")");
-      if (height_mm > 0) {
-        add(prefix + "accuracy_median_pct_height", 100 * s.accuracy_median / height_mm, in,
-            "median distance of " + what + " surface samples to the true surface [% of the "
-            "subject's height]");
-        add(prefix + "accuracy_p90_pct_height", 100 * s.accuracy_p90 / height_mm, in,
-            "90th percentile of that distance [% of the subject's height]");
-        add(prefix + "completeness_0p6pct_height", s.completeness_relative, in,
-            "fraction of true-surface samples within 0.6 % of the subject's height of " + what);
-      }
-      return s;
-    };
-    if (compared > 0) add_scores("", all_mesh, "the final mesh");
-    if (!all_hull.accuracy.empty()) add_scores("visual_hull.", all_hull, "the visual hull");
-    add("frames_compared", compared, in, "sampled frames with a reconstructed mesh");
-    add("frames_missing", missing, in,
-        "sampled ground-truth frames without a reconstructed mesh (skipped or not run)");
-
-    std::string table = fmt::format(
-        "{} ({}): per take, final mesh / visual hull\n\n| take | frames | accuracy median mm | "
-        "accuracy p90 mm | completeness 10 mm | F-score 5 mm |\n|---|---:|---:|---:|---:|---:|\n",
-        variant.dir, in == InputKind::kOracle ? "oracle" : "pipeline");
-    for (const std::string& take : takes) {
-      if (!take_mesh.count(take)) continue;
-      const Scores m = add_scores(take + ".", take_mesh[take], "the final mesh");
-      Scores h;
-      if (take_hull.count(take)) h = add_scores("visual_hull." + take + ".", take_hull[take], "the visual hull");
-      int frames = 0;
-      for (const FrameJob& j : jobs) frames += j.take == take && j.has_mesh;
-      table += fmt::format("| {} | {} | {:.2f} / {:.2f} | {:.2f} / {:.2f} | {:.3f} / {:.3f} | {:.3f} / {:.3f} |\n",
-                           take, frames, m.accuracy_median, h.accuracy_median, m.accuracy_p90,
-                           h.accuracy_p90, m.completeness, h.completeness, m.fscore, h.fscore);
-    }
-    details += table + "\n";
-
-    // Time: every per-frame record of the stage (not only the sampled frames).
-    double seconds = 0;
-    int timed = 0, skipped = 0;
-    std::map<std::string, double> steps;
-    for (const std::string& take : subfolders(out_dir)) {
-      if (!fs::is_directory(out_dir / take, ec)) continue;
-      for (const auto& e : fs::directory_iterator(out_dir / take)) {
-        if (e.path().extension() != ".json") continue;
-        nlohmann::json j;
-        try {
-          j = nlohmann::json::parse(read_file(e.path()));
-        } catch (const std::exception&) {
-          continue;
-        }
-        if (!j.is_object() || !j.contains("seconds_total")) continue;
-        if (!j.value("reconstructed", false)) {
-          ++skipped;
-          continue;
-        }
-        seconds += j["seconds_total"].get<double>();
-        ++timed;
-        for (const auto& [step, s] : j["seconds"].items()) steps[step] += s.get<double>();
-      }
-    }
-    if (timed > 0) {
-      add("seconds_per_frame", seconds / timed, in,
-          "mean time to reconstruct one frame (sum of its steps, from the per-frame records) [s]");
-      std::string st = "| step | mean seconds per frame |\n|---|---:|\n";
-      for (const auto& [step, s] : steps) st += fmt::format("| {} | {:.3f} |\n", step, s / timed);
-      details += fmt::format("{}: time per step over {} frame(s)\n\n{}\n", variant.dir, timed, st);
-    }
-    try {
-      const nlohmann::json run = nlohmann::json::parse(read_file(out_dir / "report.json")).at("run");
-      add("wall_seconds_per_frame", run.at("seconds_per_frame").get<double>(), in,
-          "wall-clock time of the last run divided by its frames (frames run in parallel) [s]");
-    } catch (const std::exception&) {
-    }
-    try {
-      const nlohmann::json summary =
-          nlohmann::json::parse(read_file(out_dir / "report.json")).at("summary");
-      add("frames_flagged", summary.at("frames_flagged").get<double>(), in,
-          "frames whose result the stage flagged as disagreeing with their silhouettes");
-      add("scale_factor", summary.at("scale_factor").get<double>(), in,
-          "the factor the stage scaled its unset lengths by (subject size / 1.75 m)");
-    } catch (const std::exception&) {
-    }
-    add("frames_skipped", skipped, in, "frames the stage reported as not reconstructable");
-    summaries.push_back(fmt::format("{}: {} sampled frame(s) compared, {} missing", variant.dir,
-                                    compared, missing));
-
-    // Heat-maps: one frame per take (the middle sampled one), final mesh and hull side by side.
-    if (variant.input != InputKind::kPipeline || cameras.empty()) continue;
-    const int pictured = std::min<int>(ctx.options.picture_takes, static_cast<int>(takes.size()));
-    for (int t = 0; t < pictured; ++t) {
-      const std::string& take = takes[t];
-      std::vector<const FrameJob*> frames;
-      for (const FrameJob& j : jobs) {
-        if (j.take == take && j.has_mesh) frames.push_back(&j);
-      }
-      if (frames.empty()) continue;
-      const FrameJob& job = *frames[frames.size() / 2];
-      const std::string file = frame_name(job.frame) + ".ply";
-      const Mesh truth = read_ply(truth_dir / take / file);
-      const MeshQuery to_truth(truth);
-      std::vector<std::pair<std::string, Mesh>> meshes = {{"final mesh", read_ply(out_dir / take / file)}};
-      if (job.has_hull) meshes.push_back({"visual hull", read_ply(out_dir / "visual_hull" / take / file)});
-      const int count = std::min<int>(ctx.options.picture_cameras, static_cast<int>(cameras.size()));
-      const double scale =
-          std::min(1.0, double(ctx.options.panel_width) / cameras[0].intrinsics.width) *
-          (cameras[0].intrinsics.width < 400 ? 1.5 : 1.0);
-      std::vector<cv::Mat> rows;
-      for (int i = 0; i < count; ++i) {
-        const Camera& camera = cameras[static_cast<std::size_t>(i) * cameras.size() / count];
-        std::vector<cv::Mat> panels;
-        for (const auto& [name, surface] : meshes) {
-          const Mesh& mesh = surface;  // a lambda cannot capture a structured binding (C++17)
-          std::vector<double> mm(mesh.positions.size());
-          tbb::parallel_for(std::size_t{0}, mm.size(),
-                            [&](std::size_t v) { mm[v] = 1000 * to_truth.distance(mesh.positions[v]); });
-          panels.push_back(heat_map(camera, mesh, mm, scale,
-                                    fmt::format("{} {} frame {}: {}", take, camera.name, job.frame, name)));
-        }
-        cv::Mat row;
-        cv::hconcat(panels, row);
-        rows.push_back(row);
-      }
-      rows.push_back(colour_bar(rows[0].cols));
-      cv::Mat picture;
-      cv::vconcat(rows, picture);
-      Picture p;
-      p.file = fmt::format("reconstruct_error_{}.png", take);
-      write_image_atomic(ctx.reports_dir / p.file, picture);
-      p.caption = fmt::format(
-          "reconstruct, take {} frame {}: distance to the true surface (blue 0, red >= {:.0f} mm) "
-          "of the final mesh (left) and of the visual hull (right)",
-          take, job.frame, kHeatMaxMm);
-      report.pictures.push_back(p);
-    }
+    summaries.push_back(VariantCheck(ctx, in, variant, report, details).run());
   }
   report.summary = fmt::format(
       "Sampled {} frame(s) per take, {} surface samples per mesh; {}.", ctx.options.frames_per_take,

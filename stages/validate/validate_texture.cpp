@@ -112,6 +112,172 @@ double texture_flicker(const fs::path& dir, const std::string& extension,
   return pairs ? sum / pairs : 0.0;
 }
 
+namespace {
+
+// The errors of the compared pixels, summed over frames (or takes).
+struct Tally {
+  ImageError error;
+  std::int64_t silhouette = 0, compared = 0;
+};
+
+// One texture run folder's validation: every take's sampled frames rendered and compared, the
+// pictures of one frame, the metrics and the table rows.
+class TextureRun {
+ public:
+  TextureRun(const ValidationContext& ctx, const RunFolder& run, const std::vector<Camera>& cameras,
+             StageReport& report, std::string& table)
+      : ctx_(ctx),
+        run_(run),
+        cameras_(cameras),
+        report_(report),
+        table_(table),
+        stage_report_(read_json(run.dir / "report.json")),
+        input_(ctx.session.root() / stage_report_.at("input").get<std::string>()),
+        extension_(stage_report_.at("extension").get<std::string>()),
+        textured_(read_ply(run.dir / "atlas.ply")) {
+    if (textured_.uv_triangles.empty()) {
+      throw InputError(fmt::format("{}: no per-corner texture coordinates", (run.dir / "atlas.ply").string()));
+    }
+    for (const auto& [take, frames] : stage_report_.at("takes").items()) takes_.push_back(take);
+  }
+
+  void validate();
+
+ private:
+  int frame_count(const std::string& take) const {
+    return static_cast<int>(stage_report_.at("takes").at(take).size());
+  }
+  Tally compare_take(std::size_t k, std::size_t* frames_compared);
+  void add_pictures(const std::vector<cv::Mat>& rows, const std::string& take, int frame,
+                    const cv::Mat& image);
+  void add_metrics(const Tally& total);
+
+  const ValidationContext& ctx_;
+  const RunFolder& run_;
+  const std::vector<Camera>& cameras_;
+  StageReport& report_;
+  std::string& table_;
+  const json stage_report_;
+  const fs::path input_;
+  const std::string extension_;
+  Mesh textured_;  // the atlas, at the frame's positions
+  std::vector<std::string> takes_;
+  double worst_ = std::numeric_limits<double>::infinity();
+};
+
+void TextureRun::validate() {
+  Tally total;
+  for (std::size_t k = 0; k < takes_.size(); ++k) {
+    std::size_t frames = 0;
+    const Tally take = compare_take(k, &frames);
+    total.error.add(take.error);
+    total.silhouette += take.silhouette;
+    total.compared += take.compared;
+    table_ += fmt::format("| {} | {} | {} | {:.2f} | | {:.1f} % |\n", run_.label, takes_[k], frames,
+                          take.error.psnr_db(),
+                          100.0 * take.compared / std::max<std::int64_t>(1, take.silhouette));
+  }
+  table_ += fmt::format("| {} | all | | **{:.2f}** | {:.2f} | {:.1f} % |\n", run_.label,
+                        total.error.psnr_db(), worst_,
+                        100.0 * total.compared / std::max<std::int64_t>(1, total.silhouette));
+  add_metrics(total);
+}
+
+// Take k's sampled frames, each rendered into every camera; the first take's middle frame
+// pictured.
+Tally TextureRun::compare_take(std::size_t k, std::size_t* frames_compared) {
+  const std::string& take = takes_[k];
+  const std::vector<int> frames = sample_frames(frame_count(take), ctx_.options.frames_per_take);
+  *frames_compared = frames.size();
+  Tally tally;
+  for (int frame : frames) {
+    const Mesh aligned = read_ply(input_ / take / (frame_name(frame) + ".ply"));
+    if (aligned.num_vertices() != textured_.num_vertices()) {
+      throw InputError(fmt::format("{}: {} vertices, the atlas has {}", take,
+                                   aligned.num_vertices(), textured_.num_vertices()));
+    }
+    textured_.positions = aligned.positions;
+    const cv::Mat image = texture::read_texture(run_.dir / take / (frame_name(frame) + extension_));
+    const bool picture = k == 0 && frame == frames[frames.size() / 2];
+    const auto results = compare_frame(ctx_.session, textured_, image, cameras_, take, frame, picture);
+    std::vector<cv::Mat> rows;
+    for (std::size_t c = 0; c < results.size(); ++c) {
+      const CameraResult& r = results[c];
+      tally.error.add(r.error);
+      tally.silhouette += r.silhouette;
+      tally.compared += r.compared;
+      if (r.error.values > 0) worst_ = std::min(worst_, r.error.psnr_db());
+      // Cameras spread evenly around the rig.
+      const std::size_t step = std::max<std::size_t>(1, cameras_.size() / ctx_.options.picture_cameras);
+      if (!r.picture.empty() && c % step == 0 && rows.size() < std::size_t(ctx_.options.picture_cameras)) {
+        rows.push_back(panel(r.picture, std::min(3 * ctx_.options.panel_width, r.picture.cols),
+                             cv::INTER_AREA,
+                             fmt::format("{} {}: captured | textured render | |difference| x4",
+                                         cameras_[c].name, frame_name(frame))));
+      }
+    }
+    if (!rows.empty()) add_pictures(rows, take, frame, image);
+  }
+  return tally;
+}
+
+// The frame's comparison (`rows`, one per pictured camera) and its baked texture.
+void TextureRun::add_pictures(const std::vector<cv::Mat>& rows, const std::string& take, int frame,
+                              const cv::Mat& image) {
+  cv::Mat picture;
+  cv::vconcat(rows, picture);
+  Picture p;
+  p.file = fmt::format("texture_{}.png", run_.label);
+  p.caption = fmt::format("Texture ({} meshes), take {} frame {}: captured image, the aligned "
+                          "mesh rendered with its baked texture, and their difference "
+                          "(x4) inside the silhouette.",
+                          run_.label, take, frame);
+  write_image_atomic(ctx_.reports_dir / p.file, picture);
+  report_.pictures.push_back(p);
+  cv::Mat map;
+  image.convertTo(map, CV_8UC3, 255.0);
+  Picture m;
+  m.file = fmt::format("texture_{}_map.png", run_.label);
+  m.caption = fmt::format("The baked texture of that frame ({} meshes) in the template's atlas.",
+                          run_.label);
+  write_image_atomic(ctx_.reports_dir / m.file,
+                     panel(map, std::min(ctx_.options.panel_width, map.cols), cv::INTER_AREA,
+                           fmt::format("{} {}", take, frame_name(frame))));
+  report_.pictures.push_back(m);
+}
+
+void TextureRun::add_metrics(const Tally& total) {
+  std::vector<std::pair<std::string, int>> frames_per_take;
+  for (const std::string& take : takes_) frames_per_take.emplace_back(take, frame_count(take));
+  const double flicker = texture_flicker(run_.dir, extension_, frames_per_take, textured_);
+  const json atlas = read_json(run_.dir / "atlas.json");
+  const json& stage_report = stage_report_;
+  const RunFolder& run = run_;
+  std::vector<Metric>& metrics = report_.metrics;
+  metrics.push_back({"psnr_db", total.error.psnr_db(), run.input,
+                     "textured mesh rendered into the studio cameras vs the captured "
+                     "images, inside the silhouette [dB]"});
+  metrics.push_back({"psnr_worst_image_db", worst_, run.input,
+                     "the worst single camera image of the sampled frames [dB]"});
+  metrics.push_back({"silhouette_covered", double(total.compared) / std::max<std::int64_t>(1, total.silhouette),
+                     run.input, "fraction of silhouette pixels the textured mesh covers"});
+  metrics.push_back({"unseen_texels_pct", 100.0 * stage_report.at("unseen_fraction_mean").get<double>(),
+                     run.input, "texels no camera saw (filled), mean over frames [%]"});
+  metrics.push_back({"flicker_levels", flicker, run.input,
+                     "mean change of a chart texel between consecutive frames [8-bit "
+                     "levels]; shading changes with the pose too: compare with oracle"});
+  metrics.push_back({"seam_rms_levels", stage_report.at("seam_rms_after").get<double>(), run.input,
+                     "colour difference across chart seams after levelling [8-bit levels]"});
+  metrics.push_back({"seconds_per_frame", stage_report.at("seconds_per_frame").get<double>(),
+                     run.input, "texture stage time per frame (bake + write) [s]"});
+  metrics.push_back({"atlas_stretch_l2", atlas.at("stretch_l2").get<double>(), run.input,
+                     "area-weighted L2 stretch of the atlas (1: none)"});
+  metrics.push_back({"atlas_charts", atlas.at("charts").get<double>(), run.input,
+                     "charts in the atlas"});
+}
+
+}  // namespace
+
 StageReport validate_texture(const ValidationContext& ctx) {
   StageReport report;
   report.stage = "texture";
@@ -131,110 +297,7 @@ StageReport validate_texture(const ValidationContext& ctx) {
   std::string table =
       "| input | take | frames | PSNR [dB] | worst image [dB] | silhouette covered |\n"
       "|---|---|---|---|---|---|\n";
-  for (const RunFolder& run : runs) {
-    const json stage_report = read_json(run.dir / "report.json");
-    const fs::path input = ctx.session.root() / stage_report.at("input").get<std::string>();
-    const std::string extension = stage_report.at("extension").get<std::string>();
-    Mesh textured = read_ply(run.dir / "atlas.ply");
-    if (textured.uv_triangles.empty()) {
-      throw InputError(fmt::format("{}: no per-corner texture coordinates", (run.dir / "atlas.ply").string()));
-    }
-    ImageError total;
-    std::int64_t silhouette = 0, compared = 0;
-    double worst = std::numeric_limits<double>::infinity();
-    std::vector<std::string> takes;
-    for (const auto& [take, frames] : stage_report.at("takes").items()) takes.push_back(take);
-    for (std::size_t k = 0; k < takes.size(); ++k) {
-      const std::string& take = takes[k];
-      const int n = static_cast<int>(stage_report.at("takes").at(take).size());
-      const std::vector<int> frames = sample_frames(n, ctx.options.frames_per_take);
-      ImageError take_error;
-      std::int64_t take_silhouette = 0, take_compared = 0;
-      for (int frame : frames) {
-        const Mesh aligned = read_ply(input / take / (frame_name(frame) + ".ply"));
-        if (aligned.num_vertices() != textured.num_vertices()) {
-          throw InputError(fmt::format("{}: {} vertices, the atlas has {}", take,
-                                       aligned.num_vertices(), textured.num_vertices()));
-        }
-        textured.positions = aligned.positions;
-        const cv::Mat image = texture::read_texture(run.dir / take / (frame_name(frame) + extension));
-        const bool picture = k == 0 && frame == frames[frames.size() / 2];
-        const auto results = compare_frame(ctx.session, textured, image, cameras, take, frame, picture);
-        std::vector<cv::Mat> rows;
-        for (std::size_t c = 0; c < results.size(); ++c) {
-          const CameraResult& r = results[c];
-          take_error.add(r.error);
-          take_silhouette += r.silhouette;
-          take_compared += r.compared;
-          if (r.error.values > 0) worst = std::min(worst, r.error.psnr_db());
-          // Cameras spread evenly around the rig.
-          const std::size_t step = std::max<std::size_t>(1, cameras.size() / ctx.options.picture_cameras);
-          if (!r.picture.empty() && c % step == 0 && rows.size() < std::size_t(ctx.options.picture_cameras)) {
-            rows.push_back(panel(r.picture, std::min(3 * ctx.options.panel_width, r.picture.cols),
-                                 cv::INTER_AREA,
-                                 fmt::format("{} {}: captured | textured render | |difference| x4",
-                                             cameras[c].name, frame_name(frame))));
-          }
-        }
-        if (!rows.empty()) {
-          cv::Mat picture;
-          cv::vconcat(rows, picture);
-          Picture p;
-          p.file = fmt::format("texture_{}.png", run.label);
-          p.caption = fmt::format("Texture ({} meshes), take {} frame {}: captured image, the aligned "
-                                  "mesh rendered with its baked texture, and their difference "
-                                  "(x4) inside the silhouette.",
-                                  run.label, take, frame);
-          write_image_atomic(ctx.reports_dir / p.file, picture);
-          report.pictures.push_back(p);
-          cv::Mat map;
-          image.convertTo(map, CV_8UC3, 255.0);
-          Picture m;
-          m.file = fmt::format("texture_{}_map.png", run.label);
-          m.caption = fmt::format("The baked texture of that frame ({} meshes) in the template's atlas.",
-                                  run.label);
-          write_image_atomic(ctx.reports_dir / m.file,
-                             panel(map, std::min(ctx.options.panel_width, map.cols), cv::INTER_AREA,
-                                   fmt::format("{} {}", take, frame_name(frame))));
-          report.pictures.push_back(m);
-        }
-      }
-      total.add(take_error);
-      silhouette += take_silhouette;
-      compared += take_compared;
-      table += fmt::format("| {} | {} | {} | {:.2f} | | {:.1f} % |\n", run.label, take, frames.size(),
-                           take_error.psnr_db(),
-                           100.0 * take_compared / std::max<std::int64_t>(1, take_silhouette));
-    }
-    table += fmt::format("| {} | all | | **{:.2f}** | {:.2f} | {:.1f} % |\n", run.label,
-                         total.psnr_db(), worst, 100.0 * compared / std::max<std::int64_t>(1, silhouette));
-    std::vector<std::pair<std::string, int>> frames_per_take;
-    for (const std::string& take : takes) {
-      frames_per_take.emplace_back(take, static_cast<int>(stage_report.at("takes").at(take).size()));
-    }
-    const double flicker = texture_flicker(run.dir, extension, frames_per_take, textured);
-    const json atlas = read_json(run.dir / "atlas.json");
-    report.metrics.push_back({"psnr_db", total.psnr_db(), run.input,
-                              "textured mesh rendered into the studio cameras vs the captured "
-                              "images, inside the silhouette [dB]"});
-    report.metrics.push_back({"psnr_worst_image_db", worst, run.input,
-                              "the worst single camera image of the sampled frames [dB]"});
-    report.metrics.push_back({"silhouette_covered", double(compared) / std::max<std::int64_t>(1, silhouette),
-                              run.input, "fraction of silhouette pixels the textured mesh covers"});
-    report.metrics.push_back({"unseen_texels_pct", 100.0 * stage_report.at("unseen_fraction_mean").get<double>(),
-                              run.input, "texels no camera saw (filled), mean over frames [%]"});
-    report.metrics.push_back({"flicker_levels", flicker, run.input,
-                              "mean change of a chart texel between consecutive frames [8-bit "
-                              "levels]; shading changes with the pose too: compare with oracle"});
-    report.metrics.push_back({"seam_rms_levels", stage_report.at("seam_rms_after").get<double>(), run.input,
-                              "colour difference across chart seams after levelling [8-bit levels]"});
-    report.metrics.push_back({"seconds_per_frame", stage_report.at("seconds_per_frame").get<double>(),
-                              run.input, "texture stage time per frame (bake + write) [s]"});
-    report.metrics.push_back({"atlas_stretch_l2", atlas.at("stretch_l2").get<double>(), run.input,
-                              "area-weighted L2 stretch of the atlas (1: none)"});
-    report.metrics.push_back({"atlas_charts", atlas.at("charts").get<double>(), run.input,
-                              "charts in the atlas"});
-  }
+  for (const RunFolder& run : runs) TextureRun(ctx, run, cameras, report, table).validate();
   report.details = table;
   return report;
 }
