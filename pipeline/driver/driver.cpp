@@ -334,6 +334,52 @@ void drop_run_measurements(nlohmann::json* j) {
   }
 }
 
+std::vector<std::string_view> split_on(std::string_view text, char separator) {
+  std::vector<std::string_view> parts;
+  std::size_t start = 0;
+  while (true) {
+    const std::size_t end = text.find(separator, start);
+    parts.push_back(text.substr(start, end == std::string_view::npos ? end : end - start));
+    if (end == std::string_view::npos) return parts;
+    start = end + 1;
+  }
+}
+
+// One JSON document per line (transitions.jsonl), each without its run measurements; false
+// when a line does not parse.
+bool canonical_json_lines(const std::string& text, std::string* out) {
+  for (std::string_view line : split_on(text, '\n')) {
+    if (line.empty()) continue;
+    nlohmann::json j = nlohmann::json::parse(line, nullptr, /*allow_exceptions=*/false);
+    if (j.is_discarded()) return false;
+    drop_run_measurements(&j);
+    *out += j.dump();
+    *out += '\n';
+  }
+  return true;
+}
+
+// A table with a header line (frames.csv) without the columns its header names as run
+// measurements (a search's wall-clock search_us); false when a field is quoted (the split on
+// commas would not be the table's) or the header names no such column.
+bool canonical_csv(const std::string& text, std::string* out) {
+  if (text.find('"') != std::string::npos) return false;
+  const std::vector<std::string_view> lines = split_on(text, '\n');
+  std::vector<char> keep;
+  for (std::string_view name : split_on(lines.front(), ',')) keep.push_back(!is_run_measurement(name));
+  if (std::all_of(keep.begin(), keep.end(), [](char k) { return k; })) return false;
+  for (std::string_view line : lines) {
+    const std::vector<std::string_view> fields = split_on(line, ',');
+    for (std::size_t i = 0; i < fields.size(); ++i) {
+      if (i < keep.size() && !keep[i]) continue;
+      *out += fields[i];
+      *out += ',';
+    }
+    *out += '\n';
+  }
+  return true;
+}
+
 }  // namespace
 
 std::uint64_t hash_result_file(const fs::path& path) {
@@ -344,6 +390,13 @@ std::uint64_t hash_result_file(const fs::path& path) {
     if (!j.is_discarded()) {
       drop_run_measurements(&j);
       return hash_bytes(j.dump());
+    }
+  }
+  if (ext == ".jsonl" || ext == ".csv") {
+    std::string canonical;
+    const std::string text = read_file(path);
+    if (ext == ".jsonl" ? canonical_json_lines(text, &canonical) : canonical_csv(text, &canonical)) {
+      return hash_bytes(canonical);
     }
   }
   return hash_file(path);

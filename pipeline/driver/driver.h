@@ -121,8 +121,10 @@ FileHashes hash_folders(const fs::path& session_root, const std::vector<std::str
 bool is_run_measurement(std::string_view json_key);
 // The content hash of one output file, run records aside: a *.log file and a *.md report (a
 // rendering for people of the JSON beside it, times included) hash to a constant: their
-// presence counts, not their bytes. A *.json file is hashed without its run measurements;
-// every other file (and a .json that does not parse) byte for byte. The files of a `.jobs/`
+// presence counts, not their bytes. A *.json file is hashed without its run measurements, a
+// *.jsonl file line by line the same way, a *.csv table without the columns its header names
+// as run measurements (a play's search_us); every other file (and one of these that does not
+// parse) byte for byte. The files of a `.jobs/`
 // folder (what a split stage's jobs hand each other: align's plan and branch files, as many as
 // the run had jobs; the stage's last job checks them, nothing after it reads them) are not
 // listed by hash_folders, folder_bytes or `fourd digest` at all.

@@ -224,6 +224,19 @@ TEST_F(DriverTest, RunRecordsInOutputsAreNotResults) {
   write_text(dir_ / "a" / ".jobs" / "plan.bin", "plan 1");
   write_text(dir_ / "a" / ".jobs" / "branch2.bin", "branch 2 of 3");
   EXPECT_EQ(hash_folders(dir_, {"a"}), one_job);
+  // A play's tables and transition records: their wall-clock columns and keys are left out.
+  write_text(dir_ / "frames.csv", "frame,p,search_us\n0,1.5,70\n1,1.6,12\n");
+  const auto frames = hash_result_file(dir_ / "frames.csv");
+  write_text(dir_ / "frames.csv", "frame,p,search_us\n0,1.5,95\n1,1.6,11\n");
+  EXPECT_EQ(hash_result_file(dir_ / "frames.csv"), frames);
+  write_text(dir_ / "frames.csv", "frame,p,search_us\n0,1.5,95\n1,1.7,11\n");
+  EXPECT_NE(hash_result_file(dir_ / "frames.csv"), frames);
+  write_text(dir_ / "t.jsonl", "{\"cost\": 5, \"search_us\": 70}\n{\"cost\": 6}\n");
+  const auto transitions = hash_result_file(dir_ / "t.jsonl");
+  write_text(dir_ / "t.jsonl", "{\"cost\": 5, \"search_us\": 80}\n{\"cost\": 6}\n");
+  EXPECT_EQ(hash_result_file(dir_ / "t.jsonl"), transitions);
+  write_text(dir_ / "t.jsonl", "{\"cost\": 5, \"search_us\": 80}\n{\"cost\": 7}\n");
+  EXPECT_NE(hash_result_file(dir_ / "t.jsonl"), transitions);
   // A file that is not valid JSON is hashed byte for byte.
   write_text(dir_ / "bad.json", "{\"seconds\": 1");
   const auto bad = hash_result_file(dir_ / "bad.json");
