@@ -219,7 +219,13 @@ void run_synth(const Session& session, const StageArgs& args) {
   std::vector<MotionClip> clips;
   for (const MotionSpec& spec : options.takes) {
     clips.push_back(generate_motion(character.skeleton, spec, fps));
-    if (options.center_takes) center_on_volume(clips.back());
+    if (!options.center_takes) continue;
+    if (spec.start_position[0] != 0 || spec.start_position[1] != 0) {
+      log::warn("take {}: start_position ({}, {}) is not used: every take's ground path is "
+                "centred on the capture volume (center_takes, docs/synth.md \"Advanced\")",
+                spec.take, spec.start_position[0], spec.start_position[1]);
+    }
+    center_on_volume(clips.back());
   }
   std::vector<Camera> rig = make_rig(options.rig);
   {
