@@ -1,5 +1,6 @@
 #pragma once
-// Remeshing a closed surface into well-shaped triangles with CGAL (kept in remesh.cpp).
+// Remeshing a closed surface into well-shaped triangles: towards an edge length or a vertex
+// count with CGAL (remesh.cpp), to an exact vertex count with OpenMesh (remesh_vertex_count.cpp).
 #include "pipeline/core/mesh.h"
 
 namespace fourd {
@@ -27,5 +28,12 @@ enum class RemeshMode {
 // polygon mesh, InputError when it is not a manifold surface.
 Mesh remesh_to_target(const Mesh& mesh, int target_vertices, RemeshMode mode, int iterations,
                       double decimate_factor);
+
+// A closed manifold mesh of exactly `target_vertices` vertices with near-equilateral
+// triangles approximating `mesh` (its largest component): isotropic remeshing (split, collapse,
+// valence-equalising flips, tangential relaxation with projection back onto the input; Botsch
+// & Kobbelt 2004), then quadric decimation or longest-edge splits for the last few vertices.
+// Throws InputError if the input is empty or not manifold where it matters.
+Mesh remesh_to_vertex_count(const Mesh& mesh, int target_vertices, int iterations = 10);
 
 }  // namespace fourd

@@ -25,10 +25,11 @@
 #include "pipeline/core/statistics.h"
 #include "pipeline/core/subject.h"
 #include "pipeline/geometry/measures.h"
+#include "pipeline/geometry/remesh.h"
+#include "pipeline/geometry/solid.h"
+#include "pipeline/geometry/surface_query.h"
 #include "stages/align/diagnosis.h"
-#include "stages/align/mesh_tools.h"
 #include "stages/align/shape_tree.h"
-#include "stages/align/surface_query.h"
 
 namespace fourd::align {
 namespace {

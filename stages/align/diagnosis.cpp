@@ -7,7 +7,7 @@
 #include <limits>
 
 #include "pipeline/core/statistics.h"
-#include "stages/align/mesh_tools.h"
+#include "pipeline/geometry/geodesic.h"
 
 namespace fourd::align {
 

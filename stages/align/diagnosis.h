@@ -17,8 +17,8 @@
 #include <string>
 #include <vector>
 
+#include "pipeline/geometry/surface_query.h"
 #include "stages/align/registration.h"
-#include "stages/align/surface_query.h"
 
 namespace fourd::align {
 

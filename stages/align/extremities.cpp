@@ -5,7 +5,7 @@
 #include <functional>
 #include <limits>
 
-#include "stages/align/mesh_tools.h"
+#include "pipeline/geometry/geodesic.h"
 
 namespace fourd::align {
 

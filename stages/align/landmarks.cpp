@@ -7,8 +7,8 @@
 #include <limits>
 
 #include "pipeline/core/log.h"
+#include "pipeline/geometry/geodesic.h"
 #include "pipeline/geometry/measures.h"
-#include "stages/align/mesh_tools.h"
 
 namespace fourd::align {
 

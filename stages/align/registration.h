@@ -43,8 +43,8 @@
 
 #include "pipeline/core/config.h"
 #include "pipeline/core/mesh.h"
+#include "pipeline/geometry/surface_query.h"
 #include "stages/align/extremities.h"
-#include "stages/align/surface_query.h"
 
 namespace fourd::align {
 

@@ -12,8 +12,8 @@
 #include <vector>
 
 #include "pipeline/core/mesh.h"
+#include "pipeline/geometry/surface_query.h"
 #include "stages/align/registration.h"
-#include "stages/align/surface_query.h"
 
 namespace fourd::align::detail {
 

@@ -8,69 +8,6 @@
 
 namespace fourd::align {
 
-SolidGrid voxelize_solid(const Mesh& mesh, double voxel, int padding) {
-  SolidGrid grid;
-  grid.voxel = voxel;
-  if (mesh.empty()) return grid;
-  Vec3f lo, hi;
-  bounding_box(mesh, &lo, &hi);
-  grid.origin = lo.cast<double>() - Eigen::Vector3d::Constant(padding * voxel);
-  const Eigen::Vector3d extent = (hi - lo).cast<double>();
-  grid.nx = static_cast<int>(std::ceil(extent.x() / voxel)) + 2 * padding;
-  grid.ny = static_cast<int>(std::ceil(extent.y() / voxel)) + 2 * padding;
-  grid.nz = static_cast<int>(std::ceil(extent.z() / voxel)) + 2 * padding;
-  grid.inside.assign(static_cast<std::size_t>(grid.nx) * grid.ny * grid.nz, 0);
-
-  // Column centres are nudged by an irrational fraction of a voxel so that no column passes
-  // exactly through a mesh vertex or edge (which would count a crossing twice or never).
-  const double nudge_x = voxel * 1e-4 * std::sqrt(2.0), nudge_y = voxel * 1e-4 * std::sqrt(3.0);
-  auto column_x = [&](int i) { return grid.origin.x() + voxel * (i + 0.5) + nudge_x; };
-  auto column_y = [&](int j) { return grid.origin.y() + voxel * (j + 0.5) + nudge_y; };
-
-  std::vector<std::vector<float>> crossings(static_cast<std::size_t>(grid.nx) * grid.ny);
-  for (const Tri& t : mesh.triangles) {
-    const Eigen::Vector3d a = mesh.positions[t[0]].cast<double>();
-    const Eigen::Vector3d b = mesh.positions[t[1]].cast<double>();
-    const Eigen::Vector3d c = mesh.positions[t[2]].cast<double>();
-    const double area = (b.x() - a.x()) * (c.y() - a.y()) - (b.y() - a.y()) * (c.x() - a.x());
-    if (area == 0) continue;  // vertical in projection: no column crosses it
-    const double min_x = std::min({a.x(), b.x(), c.x()}), max_x = std::max({a.x(), b.x(), c.x()});
-    const double min_y = std::min({a.y(), b.y(), c.y()}), max_y = std::max({a.y(), b.y(), c.y()});
-    const int i0 = std::max(0, static_cast<int>(std::floor((min_x - grid.origin.x()) / voxel - 0.5)));
-    const int i1 = std::min(grid.nx - 1, static_cast<int>(std::ceil((max_x - grid.origin.x()) / voxel)));
-    const int j0 = std::max(0, static_cast<int>(std::floor((min_y - grid.origin.y()) / voxel - 0.5)));
-    const int j1 = std::min(grid.ny - 1, static_cast<int>(std::ceil((max_y - grid.origin.y()) / voxel)));
-    for (int j = j0; j <= j1; ++j) {
-      const double y = column_y(j);
-      for (int i = i0; i <= i1; ++i) {
-        const double x = column_x(i);
-        // Edge functions = signed sub-areas opposite each corner.
-        const double wa = (b.x() - x) * (c.y() - y) - (b.y() - y) * (c.x() - x);
-        const double wb = (c.x() - x) * (a.y() - y) - (c.y() - y) * (a.x() - x);
-        const double wc = (a.x() - x) * (b.y() - y) - (a.y() - y) * (b.x() - x);
-        const bool inside = area > 0 ? (wa > 0 && wb > 0 && wc > 0) : (wa < 0 && wb < 0 && wc < 0);
-        if (!inside) continue;
-        const double z = (wa * a.z() + wb * b.z() + wc * c.z()) / area;
-        crossings[static_cast<std::size_t>(j) * grid.nx + i].push_back(static_cast<float>(z));
-      }
-    }
-  }
-  for (int j = 0; j < grid.ny; ++j) {
-    for (int i = 0; i < grid.nx; ++i) {
-      auto& zs = crossings[static_cast<std::size_t>(j) * grid.nx + i];
-      if (zs.size() < 2) continue;
-      std::sort(zs.begin(), zs.end());
-      for (std::size_t k = 0; k + 1 < zs.size(); k += 2) {
-        const int k0 = std::max(0, static_cast<int>(std::ceil((zs[k] - grid.origin.z()) / voxel - 0.5)));
-        const int k1 = std::min(grid.nz - 1,
-                                static_cast<int>(std::floor((zs[k + 1] - grid.origin.z()) / voxel - 0.5)));
-        for (int z = k0; z <= k1; ++z) grid.inside[grid.index(i, j, z)] = 1;
-      }
-    }
-  }
-  return grid;
-}
-
 ShapeDescriptor compute_shape_descriptor(const Mesh& mesh, const DescriptorOptions& options) {
   ShapeDescriptor d;
   const int shells = options.shells, bands = options.elevations, sectors = options.sectors;

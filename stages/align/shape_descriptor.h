@@ -11,6 +11,7 @@
 
 #include "pipeline/core/config.h"
 #include "pipeline/core/mesh.h"
+#include "pipeline/geometry/solid.h"
 
 namespace fourd::align {
 
@@ -29,27 +30,6 @@ struct DescriptorOptions {
     v("radius", radius, "", Length{0.0005, 1000});
   }
 };
-
-// Inside/outside occupancy of a closed mesh on a regular grid: voxel (x, y, z) has its centre
-// at origin + voxel * (x + 0.5, y + 0.5, z + 0.5).
-struct SolidGrid {
-  Eigen::Vector3d origin = Eigen::Vector3d::Zero();
-  double voxel = 1;
-  int nx = 0, ny = 0, nz = 0;
-  std::vector<std::uint8_t> inside;  // [(z * ny + y) * nx + x]
-  std::size_t index(int x, int y, int z) const {
-    return (static_cast<std::size_t>(z) * ny + y) * nx + x;
-  }
-  Eigen::Vector3d center(int x, int y, int z) const {
-    return origin + voxel * Eigen::Vector3d(x + 0.5, y + 0.5, z + 0.5);
-  }
-};
-
-// Scan-line voxelisation: along every z column of voxel centres, the crossings with the
-// triangles are sorted and the spans between successive pairs are filled (even-odd rule). For
-// a mesh with holes a column with an odd number of crossings drops its last one. `padding`
-// empty voxels surround the mesh's bounding box.
-SolidGrid voxelize_solid(const Mesh& mesh, double voxel, int padding = 1);
 
 struct ShapeDescriptor {
   std::vector<float> bins;  // [(shell * elevations + band) * sectors + sector], sums to 1

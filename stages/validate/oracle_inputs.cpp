@@ -10,11 +10,10 @@
 
 #include "pipeline/core/error.h"
 #include "pipeline/core/files.h"
-#include "pipeline/core/isosurface.h"
 #include "pipeline/core/log.h"
 #include "pipeline/core/mesh_io.h"
 #include "pipeline/core/staged_folder.h"
-#include "pipeline/geometry/mesh_query.h"
+#include "pipeline/geometry/solid.h"
 
 namespace fourd::validate {
 namespace {
@@ -48,73 +47,6 @@ unsigned frame_seed(int seed, const std::string& take, const std::string& frame)
 }
 
 }  // namespace
-
-Mesh remesh_fresh(const Mesh& mesh, double voxel, const Eigen::Vector3d& offset,
-                  double noise_sigma, unsigned seed) {
-  if (mesh.triangles.empty()) throw InputError("remesh_fresh: the mesh has no triangles");
-  const MeshQuery query(mesh);
-  Vec3f lo, hi;
-  bounding_box(mesh, &lo, &hi);
-  ScalarGrid grid;
-  grid.voxel = voxel;
-  grid.origin = lo.cast<double>() - Eigen::Vector3d::Constant(2 * voxel) + offset;
-  const Eigen::Vector3d extent = hi.cast<double>() + Eigen::Vector3d::Constant(2 * voxel) - grid.origin;
-  grid.nx = static_cast<int>(std::ceil(extent.x() / voxel)) + 1;
-  grid.ny = static_cast<int>(std::ceil(extent.y() / voxel)) + 1;
-  grid.nz = static_cast<int>(std::ceil(extent.z() / voxel)) + 1;
-  const float band = static_cast<float>(2 * voxel);
-  grid.values.assign(static_cast<std::size_t>(grid.nx) * grid.ny * grid.nz, band);
-
-  // Inside by the parity of surface crossings along x, row by row.
-  tbb::parallel_for(0, grid.nz, [&](int z) {
-    for (int y = 0; y < grid.ny; ++y) {
-      const Eigen::Vector3d row = grid.point(0, y, z);
-      const std::vector<double> xs = query.crossings_along_x(row.y(), row.z());
-      std::size_t next = 0;
-      bool inside = false;
-      for (int x = 0; x < grid.nx; ++x) {
-        const double px = row.x() + voxel * x;
-        while (next < xs.size() && xs[next] < px) {
-          inside = !inside;
-          ++next;
-        }
-        if (inside) grid.values[grid.index(x, y, z)] = -band;
-      }
-    }
-  });
-  // Exact distances where the sign changes within a cell (the only samples the isosurface uses).
-  std::vector<float> signed_distance = grid.values;
-  tbb::parallel_for(0, grid.nz, [&](int z) {
-    for (int y = 0; y < grid.ny; ++y) {
-      for (int x = 0; x < grid.nx; ++x) {
-        const bool in = grid.at(x, y, z) < 0;
-        bool boundary = false;
-        for (int dz = -1; dz <= 1 && !boundary; ++dz) {
-          for (int dy = -1; dy <= 1 && !boundary; ++dy) {
-            for (int dx = -1; dx <= 1 && !boundary; ++dx) {
-              const int a = x + dx, b = y + dy, c = z + dz;
-              if (a < 0 || b < 0 || c < 0 || a >= grid.nx || b >= grid.ny || c >= grid.nz) continue;
-              boundary = (grid.at(a, b, c) < 0) != in;
-            }
-          }
-        }
-        if (!boundary) continue;
-        const float d = static_cast<float>(query.distance(grid.point(x, y, z).cast<float>()));
-        signed_distance[grid.index(x, y, z)] = in ? -d : d;
-      }
-    }
-  });
-  grid.values = std::move(signed_distance);
-  Mesh out = extract_isosurface(grid, 0.0f);
-  if (noise_sigma > 0) {
-    compute_vertex_normals(out);
-    std::mt19937 rng(seed);
-    std::normal_distribution<float> noise(0.0f, static_cast<float>(noise_sigma));
-    for (std::size_t i = 0; i < out.positions.size(); ++i) out.positions[i] += noise(rng) * out.normals[i];
-    out.normals.clear();
-  }
-  return out;
-}
 
 void prepare_oracle_inputs(const Session& session, const OracleOptions& options) {
   const fs::path truth = session.ground_truth_dir();

@@ -32,13 +32,6 @@ struct OracleOptions {
   }
 };
 
-// The same closed surface with fresh connectivity: the zero set of its signed distance sampled
-// on a grid of `voxel` shifted by `offset` (a fraction of a voxel gives unrelated vertices and
-// triangles). With noise_sigma > 0 vertices move along their normals by Gaussian noise [m].
-// The mesh must be closed (inside/outside by ray parity). Throws InputError on an empty mesh.
-Mesh remesh_fresh(const Mesh& mesh, double voxel, const Eigen::Vector3d& offset,
-                  double noise_sigma = 0, unsigned seed = 1);
-
 // Writes <session>/oracle/ from ground_truth/ (see above), atomically as a whole folder.
 // Options come from session.yaml's stages.oracle section. Throws InputError when the session
 // has no ground truth.

@@ -16,6 +16,7 @@
 #include "pipeline/core/error.h"
 #include "pipeline/core/files.h"
 #include "pipeline/core/mesh_io.h"
+#include "pipeline/geometry/solid.h"
 #include "tests/align/align_test_data.h"
 
 namespace fourd::align {
@@ -39,7 +40,7 @@ class AlignSession {
     for (const auto& [take, phases] : takes) {
       for (std::size_t f = 0; f < phases.size(); ++f) {
         const Mesh posed = test::pose_figure(figure, test::walk_pose(figure, phases[f], 0.05 * f));
-        Mesh frame = test::remesh_fresh(posed, 0.02, {0.003 * f, 0.002, 0.001});
+        Mesh frame = remesh_fresh(posed, 0.02, {0.003 * f, 0.002, 0.001});
         for (Vec3f& p : frame.positions) p *= scale;
         write_ply(frame_file(take, static_cast<int>(f)), frame);
       }

@@ -12,31 +12,11 @@
 #include <vector>
 
 #include "pipeline/core/isosurface.h"
-#include "stages/align/mesh_tools.h"
+#include "pipeline/geometry/surface_query.h"
 #include "stages/align/shape_descriptor.h"
-#include "stages/align/surface_query.h"
 #include "tests/test_shapes.h"
 
 namespace fourd::test {
-
-// The same closed surface with fresh connectivity: the isosurface of its signed distance on a
-// grid shifted by `offset` (a fraction of a voxel gives unrelated vertices and triangles).
-// With noise_sigma > 0, vertices move along their normals by Gaussian noise [m].
-inline Mesh remesh_fresh(const Mesh& mesh, double voxel, const Eigen::Vector3d& offset,
-                         double noise_sigma = 0, unsigned seed = 1) {
-  Mesh shifted = mesh;
-  for (Vec3f& p : shifted.positions) p += offset.cast<float>();
-  Mesh out = align::surface_of_solid(shifted, align::voxelize_solid(shifted, voxel, 2));
-  for (Vec3f& p : out.positions) p -= offset.cast<float>();
-  if (noise_sigma > 0) {
-    compute_vertex_normals(out);
-    std::mt19937 rng(seed);
-    std::normal_distribution<float> noise(0.0f, static_cast<float>(noise_sigma));
-    for (std::size_t i = 0; i < out.positions.size(); ++i) out.positions[i] += noise(rng) * out.normals[i];
-    out.normals.clear();
-  }
-  return out;
-}
 
 // ---- Articulated figure ---------------------------------------------------------------
 
@@ -190,10 +170,10 @@ struct SurfaceBinding {
 };
 
 inline SurfaceBinding bind_to_surface(const std::vector<Vec3f>& points, const Mesh& truth) {
-  const align::SurfaceQuery query(truth);
+  const SurfaceQuery query(truth);
   SurfaceBinding b;
   for (const Vec3f& p : points) {
-    const align::SurfaceHit hit = query.closest(p, 1e3f);
+    const SurfaceHit hit = query.closest(p, 1e3f);
     b.triangle.push_back(hit.triangle);
     b.barycentric.push_back(hit.barycentric);
   }
@@ -213,7 +193,7 @@ struct ErrorAccumulator {
   // `aligned`: the template's vertices fitted to a frame whose truth is `truth` (same
   // topology as `truth_root`, which `binding` refers to).
   void add(const std::vector<Vec3f>& aligned, const SurfaceBinding& binding, const Mesh& truth) {
-    const align::SurfaceQuery query(truth);
+    const SurfaceQuery query(truth);
     for (std::size_t i = 0; i < aligned.size(); ++i) {
       correspondence.push_back((aligned[i] - bound_point(binding, i, truth)).norm());
       surface.push_back(query.closest(aligned[i], 1e3f).distance);

@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <set>
 
-#include "stages/align/mesh_tools.h"
+#include "pipeline/geometry/remesh.h"
 #include "tests/align/align_test_data.h"
 
 namespace fourd::align {

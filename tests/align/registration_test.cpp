@@ -8,7 +8,8 @@
 #include <algorithm>
 
 #include "pipeline/geometry/measures.h"
-#include "stages/align/mesh_tools.h"
+#include "pipeline/geometry/remesh.h"
+#include "pipeline/geometry/solid.h"
 #include "tests/align/align_test_data.h"
 #include "tests/test_shapes.h"
 
@@ -91,7 +92,7 @@ TEST(Registration, SmoothDeformationOfACapsuleIsRecoveredFromFreshConnectivity) 
   };
   Mesh target_truth = dense;
   for (Vec3f& p : target_truth.positions) p = deform(p);
-  const Mesh target_mesh = test::remesh_fresh(target_truth, 0.008, {0.0031, 0.0017, 0.0043});
+  const Mesh target_mesh = remesh_fresh(target_truth, 0.008, {0.0031, 0.0017, 0.0043});
   std::vector<Vec3f> expected;
   for (const Vec3f& p : templ.positions) expected.push_back(deform(p));
 
@@ -130,7 +131,7 @@ PosedFrame posed_frame(const Mesh& templ, const test::Pose& pose) {
   const test::Figure& figure = joined_figure();
   PosedFrame out;
   out.truth = test::pose_figure(figure, pose);
-  out.frame = test::remesh_fresh(out.truth, 0.012, {0.0031, 0.0017, 0.0043});
+  out.frame = remesh_fresh(out.truth, 0.012, {0.0031, 0.0017, 0.0043});
   const test::SurfaceBinding binding = test::bind_to_surface(templ.positions, figure.rest);
   for (std::size_t i = 0; i < templ.num_vertices(); ++i) {
     out.expected.push_back(test::bound_point(binding, i, out.truth));
@@ -284,7 +285,7 @@ TEST(Registration, ALegBentAtTheKneeIsFollowedAlongTheFrame) {
   pose.rotation[9] = test::rot(15, Eigen::Vector3d::UnitY());
   pose.rotation[10] = test::rot(100, Eigen::Vector3d::UnitY());
   const Mesh truth = test::pose_figure(figure, pose);
-  const Mesh frame = test::remesh_fresh(truth, 0.012, {0.0031, 0.0017, 0.0043});
+  const Mesh frame = remesh_fresh(truth, 0.012, {0.0031, 0.0017, 0.0043});
   const test::SurfaceBinding binding = test::bind_to_surface(templ.positions, figure.rest);
 
   int toe = -1;  // the template's right toe

@@ -4,9 +4,7 @@
 
 #include "pipeline/core/error.h"
 #include "pipeline/geometry/measures.h"
-#include "stages/align/mesh_tools.h"
 #include "stages/align/shape_descriptor.h"
-#include "stages/align/surface_query.h"
 #include "tests/align/align_test_data.h"
 #include "tests/test_shapes.h"
 
@@ -73,39 +71,6 @@ TEST(ShapeTree, CentralFrameIsTheMedoidOrANearOneWithFewerHandles) {
   // Frames 0 and 1 have no handles but are far from central.
   EXPECT_EQ(central_frame(distance, {0, 0, 3, 3, 0}, 0.02), 2);
   EXPECT_THROW(central_frame(distance, {0, 0}, 0.02), InputError);
-}
-
-TEST(MeshTools, SmallHandlesAreRemovedAndLargeOnesKept) {
-  // A ball with a thin loop (a tube of 8 mm radius) attached to it at two places: one handle.
-  auto ball_with_loop = [](const Eigen::Vector3d& p) {
-    const double ball = p.norm() - 0.2;
-    const Eigen::Vector3d q = p - Eigen::Vector3d(0.21, 0, 0);
-    const double loop = std::hypot(std::hypot(q.x(), q.z()) - 0.04, q.y()) - 0.008;
-    return std::min(ball, loop);
-  };
-  const Mesh mesh = test::isosurface_of(ball_with_loop, {-0.25, -0.25, -0.25}, {0.3, 0.25, 0.25}, 0.005);
-  ASSERT_EQ(check_manifold(mesh).handles, 1);
-  const Mesh cleaned = remove_small_handles(mesh, 0.005, 3);
-  EXPECT_EQ(check_manifold(cleaned).handles, 0);
-  EXPECT_EQ(check_manifold(cleaned).components, 1);
-  // The ball itself is the input's surface, to within a fraction of the voxel.
-  const SurfaceQuery input(mesh);
-  int far = 0;
-  for (const Vec3f& p : cleaned.positions) far += input.closest(p, 1.0f).distance > 0.002f;
-  EXPECT_LT(far, static_cast<int>(cleaned.num_vertices() / 50));
-  // Closed and opened by one voxel at most, only a handle a few voxels thin goes: the 16 mm
-  // tube goes at 5 mm voxels (three across) and stays at 2 mm (eight).
-  EXPECT_EQ(check_manifold(remove_small_handles(mesh, 0.002, 1)).handles, 1);
-  EXPECT_EQ(check_manifold(remove_small_handles(mesh, 0.005, 1)).handles, 0);
-
-  // A torus's hole is far wider than the clean-up: the torus is returned as it is.
-  auto torus = [](const Eigen::Vector3d& p) {
-    return std::hypot(std::hypot(p.x(), p.y()) - 0.3, p.z()) - 0.1;
-  };
-  const Mesh ring = test::isosurface_of(torus, {-0.5, -0.5, -0.2}, {0.5, 0.5, 0.2}, 0.02);
-  const Mesh kept = remove_small_handles(ring, 0.005, 3);
-  EXPECT_EQ(kept.positions, ring.positions);
-  EXPECT_EQ(check_manifold(kept).handles, 1);
 }
 
 }  // namespace

@@ -5,8 +5,9 @@
 #include <benchmark/benchmark.h>
 
 #include "pipeline/geometry/measures.h"
+#include "pipeline/geometry/remesh.h"
+#include "pipeline/geometry/solid.h"
 #include "stages/align/extremities.h"
-#include "stages/align/mesh_tools.h"
 #include "stages/align/registration.h"
 #include "tests/align/align_test_data.h"
 
@@ -21,7 +22,7 @@ struct ArmRaised {
   ArmRaised() {
     test::Pose pose = test::rest_pose(figure);
     pose.rotation[4] = test::rot(-90, Eigen::Vector3d::UnitY());
-    frame = test::remesh_fresh(test::pose_figure(figure, pose), 0.008, {0.0031, 0.0017, 0.0043});
+    frame = remesh_fresh(test::pose_figure(figure, pose), 0.008, {0.0031, 0.0017, 0.0043});
   }
 };
 

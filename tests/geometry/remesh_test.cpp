@@ -1,6 +1,6 @@
-// Remeshing with CGAL: the isotropic remesher of a closed surface, and remeshing to a vertex
-// target (decimation, then relaxation or isotropic remeshing) keep the surface closed and on
-// the shape.
+// Remeshing: CGAL's isotropic remesher of a closed surface, remeshing to a vertex target
+// (decimation, then relaxation or isotropic remeshing) and OpenMesh's remeshing to an exact
+// vertex count keep the surface closed and on the shape.
 #include "pipeline/geometry/remesh.h"
 
 #include <gtest/gtest.h>
@@ -94,6 +94,19 @@ TEST(Remesh, IsotropicToTargetGivesAboutTheCountOnTheShape) {
   expect_sphere_topology(out);
   EXPECT_LT(test::max_radial_error(out, kRadius), 0.001);
   EXPECT_LT(share_of_thin_triangles(out, 20.0), 0.01);
+}
+
+TEST(Remesh, ToVertexCountIsExactClosedAndOnTheShape) {
+  // The alignment template's remesher (OpenMesh): exactly the budget, whatever the input's.
+  const Mesh fine = test::fine_sphere(kRadius);
+  for (int target : {500, 2001}) {
+    const Mesh out = remesh_to_vertex_count(fine, target);
+    EXPECT_EQ(static_cast<int>(out.positions.size()), target);
+    expect_sphere_topology(out);
+    EXPECT_LT(test::max_radial_error(out, kRadius), 0.003);
+    EXPECT_LT(share_of_thin_triangles(out, 20.0), 0.02);
+  }
+  EXPECT_THROW(remesh_to_vertex_count(Mesh{}, 100), InputError);
 }
 
 // Two spheres pinched together at one shared vertex, plus a stray vertex and a zero-area

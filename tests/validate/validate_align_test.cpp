@@ -7,7 +7,6 @@
 
 #include "pipeline/core/files.h"
 #include "pipeline/core/mesh_io.h"
-#include "stages/validate/oracle_inputs.h"
 #include "stages/validate/validate_align.h"
 #include "tests/test_shapes.h"
 
@@ -15,23 +14,6 @@ namespace fourd::validate {
 namespace {
 
 namespace fs = std::filesystem;
-
-TEST(OracleInputs, RemeshFreshKeepsTheSurfaceAndChangesTheConnectivity) {
-  const Mesh sphere = test::make_icosphere(4, 0.3f);
-  const Mesh fresh = remesh_fresh(sphere, 0.01, {0.0031, 0.0017, 0.0043});
-  ASSERT_FALSE(fresh.triangles.empty());
-  EXPECT_NE(fresh.num_vertices(), sphere.num_vertices());
-  double worst = 0;
-  for (const Vec3f& p : fresh.positions) worst = std::max(worst, std::fabs(p.norm() - 0.3));
-  EXPECT_LT(worst, 0.003);  // the icosphere's facets deviate from the sphere by ~1 mm
-  // Closed: every edge shared by exactly two triangles (Euler characteristic 2).
-  EXPECT_EQ(static_cast<long>(fresh.num_vertices()) - static_cast<long>(fresh.triangles.size()) / 2, 2);
-
-  const Mesh noisy = remesh_fresh(sphere, 0.01, {0.0031, 0.0017, 0.0043}, 0.004, 3);
-  double sum = 0;
-  for (const Vec3f& p : noisy.positions) sum += std::pow(p.norm() - 0.3, 2);
-  EXPECT_GT(std::sqrt(sum / noisy.num_vertices()), 0.002);
-}
 
 class AlignMeasure : public ::testing::Test {
  protected:

@@ -1,4 +1,4 @@
-#include "stages/align/mesh_tools.h"
+#include "pipeline/geometry/remesh.h"
 
 #include <Eigen/Geometry>
 #include <OpenMesh/Tools/Decimater/DecimaterT.hh>
@@ -19,9 +19,9 @@
 #include "pipeline/geometry/components.h"
 #include "pipeline/geometry/measures.h"
 #include "pipeline/geometry/openmesh_adapter.h"
-#include "stages/align/surface_query.h"
+#include "pipeline/geometry/surface_query.h"
 
-namespace fourd::align {
+namespace fourd {
 namespace {
 
 using OMesh = OpenMeshF;
@@ -209,112 +209,4 @@ Mesh remesh_to_vertex_count(const Mesh& mesh, int target_vertices, int iteration
   return out;
 }
 
-Mesh surface_of_solid(const Mesh& mesh, const SolidGrid& solid) {
-  const SurfaceQuery query(mesh);
-  ScalarGrid grid;
-  grid.origin = solid.origin + Eigen::Vector3d::Constant(0.5 * solid.voxel);  // voxel centres
-  grid.voxel = solid.voxel;
-  grid.nx = solid.nx;
-  grid.ny = solid.ny;
-  grid.nz = solid.nz;
-  grid.values.resize(solid.inside.size());
-  const float band = static_cast<float>(2 * solid.voxel);
-  tbb::parallel_for(0, grid.nz, [&](int z) {
-    for (int y = 0; y < grid.ny; ++y) {
-      for (int x = 0; x < grid.nx; ++x) {
-        const SurfaceHit hit = query.closest(grid.point(x, y, z).cast<float>(), band);
-        const float d = hit.found ? hit.distance : band;
-        grid.values[grid.index(x, y, z)] = solid.inside[solid.index(x, y, z)] ? -d : d;
-      }
-    }
-  });
-  return extract_isosurface(grid, 0.0f);
-}
-
-namespace {
-
-// One step of binary dilation (grow) or erosion over the 6-neighbourhood; border voxels
-// keep their value.
-std::vector<std::uint8_t> morphology_step(const SolidGrid& g, const std::vector<std::uint8_t>& in,
-                                          bool grow) {
-  std::vector<std::uint8_t> out = in;
-  tbb::parallel_for(1, g.nz - 1, [&](int z) {
-    for (int y = 1; y < g.ny - 1; ++y) {
-      for (int x = 1; x < g.nx - 1; ++x) {
-        const std::uint8_t a = in[g.index(x - 1, y, z)], b = in[g.index(x + 1, y, z)],
-                           c = in[g.index(x, y - 1, z)], d = in[g.index(x, y + 1, z)],
-                           e = in[g.index(x, y, z - 1)], f = in[g.index(x, y, z + 1)];
-        const std::uint8_t v = in[g.index(x, y, z)];
-        out[g.index(x, y, z)] = grow ? (v | a | b | c | d | e | f) : (v & a & b & c & d & e & f);
-      }
-    }
-  });
-  return out;
-}
-
-std::vector<std::uint8_t> morphology(const SolidGrid& g, std::vector<std::uint8_t> v, bool grow,
-                                     int steps) {
-  for (int i = 0; i < steps; ++i) v = morphology_step(g, v, grow);
-  return v;
-}
-
-}  // namespace
-
-Mesh remove_small_handles(const Mesh& mesh, double voxel, int max_radius, double min_volume) {
-  const int input_handles = check_manifold(mesh).handles;
-  if (input_handles == 0) return mesh;
-  const double input_volume = enclosed_volume(mesh);
-  // Padding beyond the largest radius keeps the grown solid off the grid's border.
-  SolidGrid solid = voxelize_solid(mesh, voxel, max_radius + 2);
-  const std::vector<std::uint8_t> inside = solid.inside;
-  Mesh best = mesh;
-  int best_handles = input_handles < 0 ? std::numeric_limits<int>::max() : input_handles;
-  for (int r = 1; r <= max_radius; ++r) {
-    solid.inside = morphology(solid, morphology(solid, inside, true, r), false, r);  // close
-    solid.inside = morphology(solid, morphology(solid, solid.inside, false, r), true, r);  // open
-    const Mesh surface = surface_of_solid(mesh, solid);
-    Mesh part = largest_component(surface);
-    // Opening must not cut off or erase a limb: no piece of note apart from the body, and
-    // the body's volume kept.
-    const double volume = enclosed_volume(part);
-    if (volume < 0.995 * enclosed_volume(surface) || volume < min_volume * input_volume) continue;
-    const int handles = check_manifold(part).handles;
-    if (handles >= 0 && handles < best_handles) {
-      best = std::move(part);
-      best_handles = handles;
-      if (handles == 0) break;
-    }
-  }
-  return best;
-}
-
-std::vector<int> geodesic_update(const Mesh& mesh, const std::vector<std::vector<int>>& rings,
-                                 int source, int source_id, double radius,
-                                 std::vector<double>& dist, std::vector<int>& owner) {
-  using Item = std::pair<double, int>;
-  std::priority_queue<Item, std::vector<Item>, std::greater<>> heap;
-  std::vector<int> reached;
-  if (dist[source] > 0) {
-    dist[source] = 0;
-    owner[source] = source_id;
-  }
-  heap.emplace(0.0, source);
-  reached.push_back(source);
-  while (!heap.empty()) {
-    auto [d, v] = heap.top();
-    heap.pop();
-    if (d > dist[v]) continue;
-    for (int w : rings[v]) {
-      const double nd = d + (mesh.positions[v] - mesh.positions[w]).cast<double>().norm();
-      if (nd < dist[w] && nd <= radius) {
-        if (dist[w] == std::numeric_limits<double>::infinity()) reached.push_back(w);
-        dist[w] = nd;
-        owner[w] = source_id;
-        heap.emplace(nd, w);
-      }
-    }
-  }
-  return reached;
-}
-
-}  // namespace fourd::align
+}  // namespace fourd

@@ -1,4 +1,4 @@
-#include "stages/align/surface_query.h"
+#include "pipeline/geometry/surface_query.h"
 
 #include <embree3/rtcore.h>
 
@@ -12,7 +12,7 @@
 #include "pipeline/core/error.h"
 #include "pipeline/render/embree_scene.h"
 
-namespace fourd::align {
+namespace fourd {
 namespace {
 
 constexpr float kFirstRadius = 0.02f;  // [m]
@@ -172,4 +172,4 @@ float SurfaceQuery::vertex_confidence(std::size_t i) const {
   return impl_->confidence.empty() ? 1.0f : impl_->confidence[i];
 }
 
-}  // namespace fourd::align
+}  // namespace fourd

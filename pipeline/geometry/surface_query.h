@@ -8,7 +8,7 @@
 
 #include "pipeline/core/mesh.h"
 
-namespace fourd::align {
+namespace fourd {
 
 struct SurfaceHit {
   bool found = false;
@@ -50,4 +50,4 @@ class SurfaceQuery {
 Vec3f closest_point_on_triangle(const Vec3f& p, const Vec3f& a, const Vec3f& b, const Vec3f& c,
                                 Vec3f* bary);
 
-}  // namespace fourd::align
+}  // namespace fourd
