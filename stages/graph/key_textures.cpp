@@ -12,7 +12,7 @@
 #include "pipeline/core/log.h"
 #include "pipeline/core/mesh_io.h"
 #include "pipeline/core/session.h"
-#include "stages/texture/texture_io.h"
+#include "pipeline/exchange/texture_image.h"
 
 namespace fourd::graph {
 
@@ -117,7 +117,7 @@ AssetTextures build_key_textures(const MotionGraph& graph, const fs::path& textu
                                              : tf.sample_frames[0];
         const int frame = std::clamp(static_cast<int>(std::lround(frame_pos)), 0, tf.frames - 1);
         const fs::path file = texture_file(texture_dir, take, frame);
-        const cv::Mat baked = texture::read_texture(file);  // float BGR in [0, 1]
+        const cv::Mat baked = read_texture(file);  // float BGR in [0, 1]
         cv::Mat image;
         baked.convertTo(image, CV_8UC3, 255.0);
         if (options.size > 0 && (image.cols != options.size || image.rows != options.size)) {

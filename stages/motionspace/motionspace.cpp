@@ -9,16 +9,16 @@
 #include "pipeline/core/files.h"
 #include "pipeline/core/image_io.h"
 #include "pipeline/core/log.h"
-#include "pipeline/core/subject.h"
-#include "stages/motionspace/table1.h"
 #include "pipeline/core/staged_folder.h"
-#include "stages/timewarp/timewarp_io.h"
+#include "pipeline/core/subject.h"
+#include "pipeline/exchange/aligned_input.h"
+#include "pipeline/exchange/warped_class.h"
+#include "stages/motionspace/table1.h"
 
 namespace fourd::motionspace {
 
 namespace {
 
-using timewarp::WarpedClass;
 
 nlohmann::json class_summary(const MotionSpace& space, const MotionSpaceReport& r,
                              const MotionspaceOptions& options, double seconds) {
@@ -80,7 +80,7 @@ MotionSpace build_motion_space(const WarpedClass& c, const MotionspaceOptions& o
   space.triangles = c.triangles;
   space.blend = make_blend_space(n, c.num_vertices, c.num_samples);
   for (int k = 0; k < n; ++k) {
-    const timewarp::WarpedTake& t = c.takes[k];
+    const WarpedTake& t = c.takes[k];
     space.takes.push_back(t.name);
     for (int i = 0; i < c.num_samples; ++i) {
       const Vec3f* p = t.shapes.data() + static_cast<std::size_t>(i) * c.num_vertices;
@@ -105,7 +105,7 @@ void run_motionspace(const Session& session, const StageArgs& args) {
   // epsilon scales to reconstruct's subject, or to the template's size when align/ was imported.
   const Subject subject = stage_subject(session, session.dir("reconstruct"), [&] {
     const std::filesystem::path align = stage_input_dir(session, args, "align");
-    return measure_subject({timewarp::open_aligned_input(align).template_mesh}, align.string());
+    return measure_subject({open_aligned_input(align).template_mesh}, align.string());
   });
   MotionspaceOptions options;
   subject_stage_options(session, "motionspace", subject, options);
@@ -125,7 +125,7 @@ void run_motionspace(const Session& session, const StageArgs& args) {
   if (options.table1) {
     table_pair.mean_rotation_deg = -1;
     for (const MotionClassConfig& m : config.motions) {
-      const WarpedClass c = timewarp::read_warped_class(class_file(in, m.name));
+      const WarpedClass c = read_warped_class(class_file(in, m.name));
       if (c.takes.size() < 2) continue;
       const RotationScore s = most_rotated_pair(c);
       log::info("{}: {} / {} differ most in rotation ({:.1f} deg mean per triangle)", m.name,
@@ -142,7 +142,7 @@ void run_motionspace(const Session& session, const StageArgs& args) {
   double parameter_error = 0;
   for (const MotionClassConfig& m : config.motions) {
     log::Timer timer;
-    const WarpedClass c = timewarp::read_warped_class(class_file(in, m.name));
+    const WarpedClass c = read_warped_class(class_file(in, m.name));
     MotionSpaceReport report;
     const MotionSpace space = build_motion_space(c, options, &report);
     save_motion_space(staged.path() / (m.name + ".mspace"), space);

@@ -17,11 +17,11 @@
 // Every class is computed before the folder is replaced as a whole.
 #include "pipeline/core/config.h"
 #include "pipeline/core/session.h"
+#include "pipeline/exchange/warped_class.h"
 #include "runtime/motion_space.h"
 #include "stages/common/stage.h"
 #include "stages/motionspace/hybrid_build.h"
 #include "stages/motionspace/parameters.h"
-#include "stages/timewarp/timewarp.h"
 
 namespace fourd::motionspace {
 
@@ -56,7 +56,7 @@ struct MotionSpaceReport {
 
 // One class's motion space. Throws ConfigError for bad options or an unknown parameter,
 // InputError for takes that do not fit (naming the class and takes).
-MotionSpace build_motion_space(const timewarp::WarpedClass& warped,
+MotionSpace build_motion_space(const WarpedClass& warped,
                                const MotionspaceOptions& options, MotionSpaceReport* report);
 
 void run_motionspace(const Session& session, const StageArgs& args);

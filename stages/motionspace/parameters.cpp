@@ -7,7 +7,7 @@
 #include <numbers>
 
 #include "pipeline/core/error.h"
-#include "stages/timewarp/root_motion.h"
+#include "pipeline/exchange/root_motion.h"
 
 namespace fourd {
 
@@ -63,7 +63,7 @@ ParameterProbe make_parameter_probe(const std::string& motion_class, const std::
   ParameterProbe probe;
   probe.parameter = parameter;
   probe.unit = unit_of(parameter);
-  probe.torso = timewarp::torso_weights(template_positions);
+  probe.torso = torso_weights(template_positions);
   if (parameter == "reach") probe.hand_vertex = most_moving_vertex(space);
   return probe;
 }

@@ -17,7 +17,6 @@ namespace fourd {
 
 namespace {
 
-using timewarp::WarpedClass;
 
 BlendSpace pair_space(const WarpedClass& c, int a, int b) {
   BlendSpace space = make_blend_space(2, c.num_vertices, c.num_samples);

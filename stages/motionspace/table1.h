@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "stages/timewarp/timewarp.h"
+#include "pipeline/exchange/warped_class.h"
 
 namespace fourd {
 
@@ -23,7 +23,7 @@ struct RotationScore {
   int a = 0, b = 1;
   double mean_rotation_deg = 0;
 };
-RotationScore most_rotated_pair(const timewarp::WarpedClass& warped);
+RotationScore most_rotated_pair(const WarpedClass& warped);
 
 struct Table1Row {
   std::string method;
@@ -47,7 +47,7 @@ struct Table1 {
 
 // `test_weights` weights evenly inside (0, 1). Runs the non-linear blends on all cores; the
 // times are measured on one.
-Table1 evaluate_table1(const timewarp::WarpedClass& warped, int a, int b, int test_weights = 19);
+Table1 evaluate_table1(const WarpedClass& warped, int a, int b, int test_weights = 19);
 
 nlohmann::json table1_json(const Table1& table);
 

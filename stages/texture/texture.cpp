@@ -12,10 +12,10 @@
 #include "pipeline/core/files.h"
 #include "pipeline/core/log.h"
 #include "pipeline/core/mesh_io.h"
-#include "pipeline/core/subject.h"
-#include "stages/texture/texture_io.h"
 #include "pipeline/core/staged_folder.h"
-#include "stages/timewarp/timewarp.h"
+#include "pipeline/core/subject.h"
+#include "pipeline/exchange/aligned_input.h"
+#include "pipeline/exchange/texture_image.h"
 
 namespace fourd::texture {
 namespace {
@@ -109,7 +109,7 @@ class FrameBaker {
         staged_(staged) {}
 
   // The take's frames; returns their records.
-  json bake_take(const timewarp::AlignedInput& input, const std::string& take);
+  json bake_take(const AlignedInput& input, const std::string& take);
   const Totals& totals() const { return totals_; }
 
  private:
@@ -126,8 +126,8 @@ class FrameBaker {
   Totals totals_;
 };
 
-json FrameBaker::bake_take(const timewarp::AlignedInput& input, const std::string& take) {
-  const std::vector<Eigen::Matrix3Xd> frames = timewarp::load_take(input, take);
+json FrameBaker::bake_take(const AlignedInput& input, const std::string& take) {
+  const std::vector<Eigen::Matrix3Xd> frames = load_take(input, take);
   log::Progress progress(fmt::format("texture {}", take), frames.size());
   json take_report = json::array();
   for (int f = 0; f < static_cast<int>(frames.size()); ++f) {
@@ -235,7 +235,7 @@ void run_texture(const Session& session, const StageArgs& args) {
   const fs::path in = stage_input_dir(session, args, "align");
   const fs::path out = stage_output_dir(session, args, "texture");
   log::info("reading aligned meshes from {}", in.string());
-  const timewarp::AlignedInput input = timewarp::open_aligned_input(in);
+  const AlignedInput input = open_aligned_input(in);
   // Lengths scale to reconstruct's subject, or to the template's size when align/ was imported.
   const Subject subject =
       stage_subject(session, in, [&] { return measure_subject({input.template_mesh}, in.string()); });

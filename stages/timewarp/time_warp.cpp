@@ -413,10 +413,6 @@ TakeSegments find_cycles(const LocalTake& take, const CycleOptions& options) {
   return out;
 }
 
-double TakeTiming::frame_at(double u) const {
-  if (cyclic) return start + (u - std::floor(u)) * length;
-  return std::clamp(u, 0.0, 1.0) * length;
-}
 
 TakeTiming one_shot_timing(const LocalTake& take) {
   return TakeTiming{false, 0.0, static_cast<double>(take.num_frames() - 1)};
@@ -510,23 +506,7 @@ LocalTake steady_cycle_root(LocalTake take, const TakeTiming& timing) {
   return take;
 }
 
-double Warp::at(double u) const {
-  const int m = static_cast<int>(knots.size()) - 1;
-  const double pos = std::clamp(u, 0.0, 1.0) * m;
-  const int i = std::min(static_cast<int>(std::floor(pos)), m - 1);
-  const double a = pos - i;
-  return offset + (1 - a) * knots[i] + a * knots[i + 1];
-}
 
-double Warp::inverse(double v) const {
-  const int m = static_cast<int>(knots.size()) - 1;
-  const double w = std::clamp(v - offset, 0.0, 1.0);
-  const auto it = std::upper_bound(knots.begin(), knots.end(), w);
-  const int b = std::clamp(static_cast<int>(it - knots.begin()), 1, m), a = b - 1;
-  const double span = knots[b] - knots[a];
-  const double f = span > 0 ? (w - knots[a]) / span : 0.0;
-  return (a + std::clamp(f, 0.0, 1.0)) / m;
-}
 
 Warp identity_warp(int intervals) {
   Warp w;

@@ -18,7 +18,8 @@
 #include <string>
 #include <vector>
 
-#include "stages/timewarp/root_motion.h"
+#include "pipeline/exchange/root_motion.h"
+#include "pipeline/exchange/warped_class.h"
 
 namespace fourd::timewarp {
 
@@ -45,17 +46,6 @@ struct CycleOptions {
   double max_closure_ratio = 0.3;  // closure / variation of the cycle's state, at most
 };
 
-// A cycle is judged on the body's state, its shape and its velocity: a take cut at two poses
-// that look alike but move differently (a swing forward and the swing back) does not close.
-// Velocities are per frame, weighted by (period / 2 pi)^2 so both terms have the scale of a
-// shape (for a sinusoidal motion they vary equally).
-struct Cycle {
-  double start = 0;          // first frame of the cycle (fractional)
-  double period = 0;         // cycle length [frames] (fractional)
-  double closure_rms = 0;    // RMS vertex distance between the shapes at start and end [m]
-  double variation_rms = 0;  // RMS vertex distance of the cycle's shapes from their mean [m]
-  double closure_ratio = 0;  // state closure / state variation over the cycle
-};
 
 // The period of a take [frames, fractional], from all of it: the lag at which the state
 // (shape and velocity) repeats best on average over every pair of frames that lag apart, taken
@@ -87,13 +77,6 @@ struct TakeSegments {
 };
 TakeSegments find_cycles(const LocalTake& take, const CycleOptions& options);
 
-// Where a take's phase lives in its frames (see the top of this file).
-struct TakeTiming {
-  bool cyclic = false;
-  double start = 0;   // cyclic: cycle start frame; one-shot: 0
-  double length = 0;  // cyclic: period [frames]; one-shot: n - 1
-  double frame_at(double u) const;  // continuous frame position of phase u
-};
 TakeTiming one_shot_timing(const LocalTake& take);
 TakeTiming cyclic_timing(const Cycle& cycle);
 
@@ -112,15 +95,6 @@ Root2 root_at_phase(const LocalTake& take, const TakeTiming& timing, double u);
 // relative to them (the frames themselves unchanged), so the sway is kept in the body shape.
 LocalTake steady_cycle_root(LocalTake take, const TakeTiming& timing);
 
-// A monotone map from the reference's phase to a take's phase: the take's phase at reference
-// phase u in [0, 1] is offset + knots interpolated at u (knots from 0 to 1, M + 1 of them,
-// strictly increasing). The reference take's own warp is the identity.
-struct Warp {
-  double offset = 0;           // cyclic: phase of the take at the reference's phase 0
-  std::vector<double> knots;   // M + 1 values at u = i / M
-  double at(double u) const;        // offset + knots(u)
-  double inverse(double v) const;   // u with knots(u) = v - offset (v - offset in [0, 1])
-};
 Warp identity_warp(int intervals);
 
 struct WarpOptions {

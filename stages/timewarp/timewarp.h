@@ -19,6 +19,8 @@
 #include "pipeline/core/config.h"
 #include "pipeline/core/mesh.h"
 #include "pipeline/core/session.h"
+#include "pipeline/exchange/aligned_input.h"
+#include "pipeline/exchange/warped_class.h"
 #include "stages/common/stage.h"
 #include "stages/timewarp/time_warp.h"
 
@@ -53,47 +55,7 @@ struct TimewarpOptions {
   }
 };
 
-// One take of a registered class.
-struct WarpedTake {
-  std::string name;
-  int num_frames = 0;            // captured frames of the take
-  Cycle cycle;                   // cyclic classes only
-  TakeTiming timing;
-  Warp warp;                     // reference phase -> this take's phase
-  std::vector<double> frame_t;   // the class time t of every captured frame (cycles: wrapped)
-  // Per sample i (t_i = i / (F - 1)):
-  std::vector<double> sample_frames;  // F: continuous frame position in the take
-  std::vector<double> seconds;        // F: the take's own time since sample 0 [s]
-  std::vector<Root2> roots;           // F: root relative to sample 0
-  std::vector<Vec3f> shapes;          // F x #V (sample-major): body shape, root removed
-};
 
-struct WarpedClass {
-  std::string name;
-  std::string parameter;
-  bool cyclic = false;
-  double fps = 0;
-  int num_vertices = 0;
-  int num_samples = 0;                  // F
-  std::vector<Tri> triangles;           // the template's
-  Eigen::Matrix3Xd template_positions;  // 3 x #V
-  double character_height = 0;          // [m]
-  std::vector<WarpedTake> takes;        // reference first
-
-  // Shape of take k at sample i as a 3 x #V matrix.
-  Eigen::Matrix3Xd shape(int take, int sample) const;
-};
-
-// The template and the frames of one take: align/<take>/000000.ply, 000001.ply, ... (frame
-// numbers contiguous from 0). Throws InputError naming the take and frame for a missing
-// folder, a gap, a frame with another vertex count or topology than the template, or
-// non-finite positions.
-struct AlignedInput {
-  Mesh template_mesh;
-  std::filesystem::path dir;
-};
-AlignedInput open_aligned_input(const std::filesystem::path& dir);
-std::vector<Eigen::Matrix3Xd> load_take(const AlignedInput& input, const std::string& take);
 
 // Removes root motion from a take's frames.
 // `root_smoothing`: passes of smooth_roots() over the estimated root curve.

@@ -1,7 +1,7 @@
 #pragma once
 // Files of the timewarp stage.
-//   <class>.twarp  versioned binary (pipeline/core/binary_format.h, magic "FOURDTW"): the
-//                  registered, resampled class (WarpedClass) that the motionspace stage reads.
+//   <class>.twarp  the registered, resampled class (WarpedClass) that the motionspace stage
+//                  reads: pipeline/exchange/warped_class.h.
 //   report.json    per class and take: the period, every cycle that closes, the one-shot
 //                  segments between them, the cycle used (see take_segments_json).
 //   <class>.json   what a person or the validator wants to see: per take its cycle, phase
@@ -12,12 +12,6 @@
 #include "stages/timewarp/timewarp.h"
 
 namespace fourd::timewarp {
-
-void write_warped_class(const std::filesystem::path& path, const WarpedClass& warped);
-// Throws IoError / InputError naming the file for a missing, corrupt or inconsistent file.
-WarpedClass read_warped_class(const std::filesystem::path& path);
-
-nlohmann::json warped_class_summary(const WarpedClass& warped);
 
 // report.json: per take, its period, every cycle that closes (with its closure error) and the
 // one-shot segments between them (find_cycles), and the cycle the class uses (cyclic classes).

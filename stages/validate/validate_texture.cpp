@@ -15,9 +15,9 @@
 #include "pipeline/core/error.h"
 #include "pipeline/core/image_io.h"
 #include "pipeline/core/mesh_io.h"
+#include "pipeline/exchange/atlas.h"
+#include "pipeline/exchange/texture_image.h"
 #include "pipeline/render/textured_render.h"
-#include "stages/texture/atlas.h"
-#include "stages/texture/texture_io.h"
 #include "stages/validate/sampling.h"
 #include "stages/validate/validate.h"
 
@@ -71,11 +71,11 @@ std::vector<CameraResult> compare_frame(const Session& session, const Mesh& text
 // The texels the bake maps onto the surface (centres inside a chart's triangle), as the
 // texture stage finds them.
 cv::Mat chart_mask(const Mesh& atlas, int resolution) {
-  texture::Atlas charts;
+  Atlas charts;
   charts.resolution = resolution;
   charts.uvs = atlas.uvs;
   charts.uv_triangles = atlas.uv_triangles;
-  const texture::TexelMap texels = texture::map_texels(charts, atlas.triangles, /*reach=*/0.0);
+  const TexelMap texels = map_texels(charts, atlas.triangles, /*reach=*/0.0);
   cv::Mat mask = cv::Mat::zeros(resolution, resolution, CV_8U);
   for (int t : texels.texel) mask.at<std::uint8_t>(t / resolution, t % resolution) = 255;
   return mask;
@@ -93,7 +93,7 @@ double texture_flicker(const fs::path& dir, const std::string& extension,
     cv::Mat previous;
     for (int frame = 0; frame < frames; ++frame) {
       const fs::path file = dir / take / (frame_name(frame) + extension);
-      cv::Mat image = texture::read_texture(file);
+      cv::Mat image = read_texture(file);
       if (mask.empty()) mask = chart_mask(atlas, image.cols);
       if (image.size() != mask.size()) {
         throw InputError(fmt::format("{}: {}x{} texels, the take's first texture has {}x{}",
@@ -197,7 +197,7 @@ Tally TextureRun::compare_take(std::size_t k, std::size_t* frames_compared) {
                                    aligned.num_vertices(), textured_.num_vertices()));
     }
     textured_.positions = aligned.positions;
-    const cv::Mat image = texture::read_texture(run_.dir / take / (frame_name(frame) + extension_));
+    const cv::Mat image = read_texture(run_.dir / take / (frame_name(frame) + extension_));
     const bool picture = k == 0 && frame == frames[frames.size() / 2];
     const auto results = compare_frame(ctx_.session, textured_, image, cameras_, take, frame, picture);
     std::vector<cv::Mat> rows;

@@ -8,11 +8,11 @@
 
 #include <filesystem>
 
+#include "pipeline/exchange/texture_image.h"
 #include "stages/synth/character.h"
 #include "stages/synth/render.h"
 #include "stages/texture/atlas.h"
 #include "stages/texture/bake.h"
-#include "stages/texture/texture_io.h"
 
 namespace fourd::texture {
 namespace {

@@ -14,8 +14,8 @@
 #include "pipeline/core/log.h"
 #include "pipeline/core/mesh_io.h"
 #include "pipeline/core/session.h"
+#include "pipeline/exchange/aligned_input.h"
 #include "stages/import/media.h"
-#include "stages/timewarp/timewarp.h"
 #include "tests/import/import_test_data.h"
 #include "tests/input_error.h"
 #include "tests/scratch_dir.h"
@@ -264,12 +264,12 @@ TEST(Import, MeshSequences) {
   o.consistent = true;
   o.takes = {"walk=0:3", "hop=4:4"};
   run_import(o);
-  const timewarp::AlignedInput aligned = timewarp::open_aligned_input(o.session / "align");
+  const AlignedInput aligned = open_aligned_input(o.session / "align");
   EXPECT_EQ(aligned.template_mesh.num_vertices(), sphere.num_vertices());
-  const std::vector<Eigen::Matrix3Xd> walk = timewarp::load_take(aligned, "walk");
+  const std::vector<Eigen::Matrix3Xd> walk = load_take(aligned, "walk");
   ASSERT_EQ(walk.size(), 4u);
   EXPECT_NEAR(walk[2](0, 0), moved(sphere, 2).positions[0].x(), 1e-6);  // mm -> m
-  EXPECT_EQ(timewarp::load_take(aligned, "hop").size(), 1u);
+  EXPECT_EQ(load_take(aligned, "hop").size(), 1u);
   const json r = record(o.session / "align");
   EXPECT_EQ(r["what"], "align");
   EXPECT_EQ(r["checks"]["units"], "mm");

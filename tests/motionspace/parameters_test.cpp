@@ -21,7 +21,7 @@ constexpr double kDeg = std::numbers::pi / 180;
 timewarp::LocalTake local(const test::Walker& w, std::vector<Eigen::Matrix3Xd> frames,
                           const std::string& name) {
   return timewarp::make_local_take(name, std::move(frames), w.mesh.positions,
-                                   timewarp::torso_weights(w.mesh.positions));
+                                   torso_weights(w.mesh.positions));
 }
 
 // Walks of a class, one per spec, registered and built into a motion space.
@@ -33,7 +33,7 @@ MotionSpace walk_space(const test::Walker& w, const std::vector<test::WalkSpec>&
   }
   MotionClassConfig motion{"walks", {}, parameter, true};
   for (const auto& t : takes) motion.takes.push_back(t.name);
-  const timewarp::WarpedClass warped =
+  const WarpedClass warped =
       timewarp::warp_class(motion, 25, test::walker_mesh(w), std::move(takes), {});
   return motionspace::build_motion_space(warped, {}, report);
 }
@@ -105,7 +105,7 @@ TEST(Parameters, JumpHeightIsMeasuredOnTheBlendedShapes) {
   std::vector<timewarp::LocalTake> takes{local(w, test::jump_frames(w, low), "jump_low"),
                                          local(w, test::jump_frames(w, high), "jump_high")};
   const MotionClassConfig motion{"jumps", {"jump_low", "jump_high"}, "height", false};
-  const timewarp::WarpedClass warped =
+  const WarpedClass warped =
       timewarp::warp_class(motion, 25, test::walker_mesh(w), std::move(takes), {});
   motionspace::MotionSpaceReport report;
   const MotionSpace space = motionspace::build_motion_space(warped, {}, &report);

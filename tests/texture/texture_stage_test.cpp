@@ -12,8 +12,8 @@
 #include "pipeline/core/files.h"
 #include "pipeline/core/image_io.h"
 #include "pipeline/core/mesh_io.h"
+#include "pipeline/exchange/texture_image.h"
 #include "stages/texture/texture.h"
-#include "stages/texture/texture_io.h"
 #include "tests/texture/textured_scene.h"
 
 namespace fourd::texture {

@@ -8,7 +8,7 @@
 #include <numbers>
 
 #include "pipeline/core/error.h"
-#include "stages/timewarp/root_motion.h"
+#include "pipeline/exchange/root_motion.h"
 #include "stages/timewarp/timewarp.h"
 #include "tests/timewarp/walker.h"
 

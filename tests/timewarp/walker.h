@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "pipeline/core/mesh.h"
-#include "stages/timewarp/root_motion.h"
+#include "pipeline/exchange/root_motion.h"
 #include "tests/motionspace/test_meshes.h"
 
 namespace fourd::test {
@@ -99,7 +99,7 @@ inline Eigen::Matrix3Xd walk_shape(const Walker& w, const WalkSpec& s, double ph
 }
 
 // World root of a walk at frame f: (x, y, heading) integrated along a circular arc.
-inline timewarp::Root2 walk_root(const WalkSpec& s, double f) {
+inline Root2 walk_root(const WalkSpec& s, double f) {
   const double time = f / s.fps;
   const double heading = s.start_heading + s.turn_rate * time;
   Eigen::Vector2d p = s.start_position;
@@ -116,7 +116,7 @@ inline timewarp::Root2 walk_root(const WalkSpec& s, double f) {
 inline std::vector<Eigen::Matrix3Xd> walk_frames(const Walker& w, const WalkSpec& s) {
   std::vector<Eigen::Matrix3Xd> frames;
   for (int f = 0; f < s.frames; ++f) {
-    frames.push_back(timewarp::apply_root(walk_shape(w, s, walk_phase(s, f)), walk_root(s, f)));
+    frames.push_back(apply_root(walk_shape(w, s, walk_phase(s, f)), walk_root(s, f)));
   }
   return frames;
 }
@@ -147,7 +147,7 @@ inline std::vector<Eigen::Matrix3Xd> jump_frames(const Walker& w, const JumpSpec
   for (int f = 0; f < s.frames; ++f) {
     const double u = jump_time(s, f);
     const double x = s.length * (u < 0.3 ? 0.0 : u > 0.7 ? 1.0 : (u - 0.3) / 0.4);
-    frames.push_back(timewarp::apply_root(jump_shape(w, s, u), {x, 0.0, 0.0}));
+    frames.push_back(apply_root(jump_shape(w, s, u), {x, 0.0, 0.0}));
   }
   return frames;
 }

@@ -6,7 +6,7 @@
 
 #include "pipeline/core/error.h"
 #include "pipeline/core/files.h"
-#include "stages/texture/texture_io.h"
+#include "pipeline/exchange/texture_image.h"
 #include "stages/validate/validate.h"
 
 namespace fourd::validate {
@@ -32,7 +32,7 @@ class TextureFlicker : public ::testing::Test {
   void write(const std::string& take, int frame, int inside, int outside) {
     cv::Mat image(64, 64, CV_8UC3, cv::Scalar::all(outside));
     image.colRange(0, 32).setTo(cv::Scalar::all(inside));
-    texture::write_texture(dir_ / take / (frame_name(frame) + ".png"), image);
+    write_texture(dir_ / take / (frame_name(frame) + ".png"), image);
   }
 
   fs::path dir_;
@@ -57,7 +57,7 @@ TEST_F(TextureFlicker, StaticTexturesDoNotFlicker) {
 TEST_F(TextureFlicker, AMissingOrResizedTextureIsAClearError) {
   write("a", 0, 100, 0);
   EXPECT_THROW(texture_flicker(dir_, ".png", {{"a", 2}}, atlas_), IoError);
-  texture::write_texture(dir_ / "a" / "000001.png", cv::Mat(32, 32, CV_8UC3, cv::Scalar::all(1)));
+  write_texture(dir_ / "a" / "000001.png", cv::Mat(32, 32, CV_8UC3, cv::Scalar::all(1)));
   EXPECT_THROW(texture_flicker(dir_, ".png", {{"a", 2}}, atlas_), InputError);
 }
 

@@ -1,4 +1,4 @@
-#include "stages/texture/texture_io.h"
+#include "pipeline/exchange/texture_image.h"
 
 #include <OpenImageIO/imageio.h>
 #include <fmt/format.h>
@@ -8,7 +8,7 @@
 #include "pipeline/core/error.h"
 #include "pipeline/core/files.h"
 
-namespace fourd::texture {
+namespace fourd {
 
 std::string texture_extension(const std::string& format, const std::string& field) {
   if (format == "png") return ".png";
@@ -74,4 +74,4 @@ cv::Mat read_texture(const std::filesystem::path& path) {
   return bgr;
 }
 
-}  // namespace fourd::texture
+}  // namespace fourd

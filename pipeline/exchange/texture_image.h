@@ -5,7 +5,7 @@
 #include <opencv2/core.hpp>
 #include <string>
 
-namespace fourd::texture {
+namespace fourd {
 
 // "png" or "exr"; ConfigError naming `field` otherwise.
 std::string texture_extension(const std::string& format, const std::string& field);
@@ -19,4 +19,4 @@ void write_texture(const std::filesystem::path& path, const cv::Mat& image);
 // BGR in [0, 1]. Throws IoError naming the file when it cannot be read.
 cv::Mat read_texture(const std::filesystem::path& path);
 
-}  // namespace fourd::texture
+}  // namespace fourd

@@ -1,10 +1,10 @@
-#include "stages/timewarp/root_motion.h"
+#include "pipeline/exchange/root_motion.h"
 
 #include <algorithm>
 #include <cmath>
 #include <numbers>
 
-namespace fourd::timewarp {
+namespace fourd {
 
 namespace {
 
@@ -158,4 +158,4 @@ std::vector<Root2> estimate_roots(std::span<const Eigen::Matrix3Xd> frames,
   return roots;
 }
 
-}  // namespace fourd::timewarp
+}  // namespace fourd

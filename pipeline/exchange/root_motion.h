@@ -16,7 +16,7 @@
 #include <span>
 #include <vector>
 
-namespace fourd::timewarp {
+namespace fourd {
 
 // (x, y, heading [rad]): a rigid motion of the ground plane, p -> R(heading) p + (x, y).
 using Root2 = Eigen::Vector3d;
@@ -60,4 +60,4 @@ std::vector<Root2> estimate_roots(std::span<const Eigen::Matrix3Xd> frames,
                                   const Eigen::Matrix3Xd& template_positions,
                                   std::span<const double> torso);
 
-}  // namespace fourd::timewarp
+}  // namespace fourd
