@@ -9,7 +9,7 @@
 #include <limits>
 
 #include "pipeline/core/error.h"
-#include "runtime/root_math.h"
+#include "pipeline/core/se2.h"
 #include "runtime/transition_jump.h"
 
 namespace fourd {

@@ -56,6 +56,7 @@
 #include <cstdint>
 #include <string_view>
 
+#include "pipeline/core/se2.h"
 #include "runtime/blend.h"
 #include "runtime/motion_graph.h"
 #include "runtime/transition.h"
@@ -97,14 +98,6 @@ enum class PlayPhase : std::uint8_t {
   kTarget,  // a transition path: playing the target from the entry to the requested state
 };
 const char* play_phase_name(PlayPhase p);
-
-// World pose of the root on the ground plane, in double so that long walks integrate without
-// drift (RootPose is float): p -> R(heading) p + (x, y).
-struct RootTransform {
-  double x = 0;        // [m]
-  double y = 0;        // [m]
-  double heading = 0;  // [rad] counter-clockwise seen from above, not wrapped
-};
 
 // What the character is doing: plain data, copied to evaluate a frame between ticks.
 struct CharacterState {

@@ -7,7 +7,7 @@
 #include <numbers>
 
 #include "pipeline/core/error.h"
-#include "runtime/root_math.h"
+#include "pipeline/core/se2.h"
 
 namespace fourd {
 

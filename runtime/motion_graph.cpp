@@ -8,7 +8,7 @@
 #include <deque>
 
 #include "pipeline/core/error.h"
-#include "runtime/root_math.h"
+#include "pipeline/core/se2.h"
 
 namespace fourd {
 

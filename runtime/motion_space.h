@@ -22,16 +22,11 @@
 
 #include "pipeline/core/binary_format.h"
 #include "pipeline/core/mesh.h"
+#include "pipeline/core/se2.h"
 #include "runtime/blend.h"
 #include "runtime/parameter_map.h"
 
 namespace fourd {
-
-struct RootPose {
-  float x = 0;        // [m] forward, in the root frame at t = 0
-  float y = 0;        // [m] left
-  float heading = 0;  // [rad] counter-clockwise seen from above
-};
 
 struct MotionSpace {
   std::string name;  // motion class, e.g. "locomotion"

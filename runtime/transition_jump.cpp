@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "runtime/root_math.h"
+#include "pipeline/core/se2.h"
 
 namespace fourd {
 

@@ -8,8 +8,8 @@
 #include <numbers>
 
 #include "pipeline/core/error.h"
+#include "pipeline/core/se2.h"
 #include "runtime/player.h"
-#include "runtime/root_math.h"
 
 namespace fourd::web {
 

@@ -12,9 +12,6 @@ constexpr double kTorsoLow = 0.50;     // torso band, fraction of the body heigh
 constexpr double kTorsoHigh = 0.80;
 constexpr double kTorsoRadius = 0.12;  // horizontal distance from the axis, fraction of height
 
-// sin(x) / x, accurate near 0.
-double sinc(double x) { return std::abs(x) < 1e-4 ? 1 - x * x / 6 : std::sin(x) / x; }
-
 Eigen::Vector2d rotate(const Eigen::Vector2d& p, double angle) {
   const double c = std::cos(angle), s = std::sin(angle);
   return {c * p.x() - s * p.y(), s * p.x() + c * p.y()};
@@ -27,36 +24,6 @@ Eigen::Vector2d weighted_centroid_xy(const Eigen::Matrix3Xd& x, std::span<const 
 }
 
 }  // namespace
-
-Root2 compose(const Root2& a, const Root2& b) {
-  const double c = std::cos(a.z()), s = std::sin(a.z());
-  return {a.x() + c * b.x() - s * b.y(), a.y() + s * b.x() + c * b.y(), a.z() + b.z()};
-}
-
-Root2 inverse(const Root2& a) {
-  const double c = std::cos(a.z()), s = std::sin(a.z());
-  return {-(c * a.x() + s * a.y()), -(-s * a.x() + c * a.y()), -a.z()};
-}
-
-Root2 relative(const Root2& a, const Root2& b) { return compose(inverse(a), b); }
-
-Root2 power(const Root2& a, double alpha) {
-  // A rigid motion of the plane is exp of a twist (v, w): heading w, translation V(w) v with
-  // V(w) = sinc(w / 2) R(w / 2). So power(a, alpha) turns by alpha w and translates by
-  // V(alpha w) alpha V(w)^-1 t.
-  const double w = a.z();
-  const double scale = alpha * sinc(alpha * w / 2) / sinc(w / 2);
-  const Eigen::Vector2d t = scale * rotate(a.head<2>(), (alpha - 1) * w / 2);
-  return {t.x(), t.y(), alpha * w};
-}
-
-double wrap_angle(double a) {
-  const double two_pi = 2 * std::numbers::pi;
-  a = std::fmod(a, two_pi);
-  if (a <= -std::numbers::pi) a += two_pi;
-  if (a > std::numbers::pi) a -= two_pi;
-  return a;
-}
 
 double body_height(const Eigen::Matrix3Xd& t) {
   return t.cols() == 0 ? 0.0 : t.row(2).maxCoeff() - t.row(2).minCoeff();
@@ -95,7 +62,7 @@ std::vector<double> torso_weights(const Eigen::Matrix3Xd& t) {
   return w;
 }
 
-Root2 estimate_root(const Eigen::Matrix3Xd& frame, const Eigen::Matrix3Xd& templ,
+RootTransform estimate_root(const Eigen::Matrix3Xd& frame, const Eigen::Matrix3Xd& templ,
                     std::span<const double> torso) {
   const Eigen::Vector2d cf = weighted_centroid_xy(frame, torso);
   const Eigen::Vector2d ct = weighted_centroid_xy(templ, torso);
@@ -115,43 +82,47 @@ Root2 estimate_root(const Eigen::Matrix3Xd& frame, const Eigen::Matrix3Xd& templ
   return {t.x(), t.y(), heading};
 }
 
-Eigen::Matrix3Xd remove_root(const Eigen::Matrix3Xd& frame, const Root2& root) {
-  const double c = std::cos(root.z()), s = std::sin(root.z());
+Eigen::Matrix3Xd remove_root(const Eigen::Matrix3Xd& frame, const RootTransform& root) {
+  const double c = std::cos(root.heading), s = std::sin(root.heading);
   Eigen::Matrix3Xd out(3, frame.cols());
   for (Eigen::Index v = 0; v < frame.cols(); ++v) {
-    const double x = frame(0, v) - root.x(), y = frame(1, v) - root.y();
+    const double x = frame(0, v) - root.x, y = frame(1, v) - root.y;
     out.col(v) << c * x + s * y, -s * x + c * y, frame(2, v);
   }
   return out;
 }
 
-Eigen::Matrix3Xd apply_root(const Eigen::Matrix3Xd& shape, const Root2& root) {
-  const double c = std::cos(root.z()), s = std::sin(root.z());
+Eigen::Matrix3Xd apply_root(const Eigen::Matrix3Xd& shape, const RootTransform& root) {
+  const double c = std::cos(root.heading), s = std::sin(root.heading);
   Eigen::Matrix3Xd out(3, shape.cols());
   for (Eigen::Index v = 0; v < shape.cols(); ++v) {
     const double x = shape(0, v), y = shape(1, v);
-    out.col(v) << c * x - s * y + root.x(), s * x + c * y + root.y(), shape(2, v);
+    out.col(v) << c * x - s * y + root.x, s * x + c * y + root.y, shape(2, v);
   }
   return out;
 }
 
-void smooth_roots(std::vector<Root2>* roots, int passes) {
-  std::vector<Root2>& r = *roots;
+void smooth_roots(std::vector<RootTransform>* roots, int passes) {
+  std::vector<RootTransform>& r = *roots;
   for (int pass = 0; pass < passes && r.size() > 2; ++pass) {
-    std::vector<Root2> s = r;
-    for (std::size_t i = 1; i + 1 < r.size(); ++i) s[i] = 0.25 * (r[i - 1] + 2 * r[i] + r[i + 1]);
+    std::vector<RootTransform> s = r;
+    for (std::size_t i = 1; i + 1 < r.size(); ++i) {
+      s[i] = {0.25 * (r[i - 1].x + 2 * r[i].x + r[i + 1].x),
+              0.25 * (r[i - 1].y + 2 * r[i].y + r[i + 1].y),
+              0.25 * (r[i - 1].heading + 2 * r[i].heading + r[i + 1].heading)};
+    }
     r = std::move(s);
   }
 }
 
-std::vector<Root2> estimate_roots(std::span<const Eigen::Matrix3Xd> frames,
+std::vector<RootTransform> estimate_roots(std::span<const Eigen::Matrix3Xd> frames,
                                   const Eigen::Matrix3Xd& templ, std::span<const double> torso) {
-  std::vector<Root2> roots;
+  std::vector<RootTransform> roots;
   roots.reserve(frames.size());
   for (const Eigen::Matrix3Xd& f : frames) {
-    Root2 r = estimate_root(f, templ, torso);
+    RootTransform r = estimate_root(f, templ, torso);
     if (!roots.empty()) {  // unwrap: continue from the previous heading
-      r.z() = roots.back().z() + wrap_angle(r.z() - roots.back().z());
+      r.heading = roots.back().heading + wrap_heading(r.heading - roots.back().heading);
     }
     roots.push_back(r);
   }

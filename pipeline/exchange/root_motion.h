@@ -16,23 +16,11 @@
 #include <span>
 #include <vector>
 
+#include "pipeline/core/se2.h"
+
 namespace fourd {
 
-// (x, y, heading [rad]): a rigid motion of the ground plane, p -> R(heading) p + (x, y).
-using Root2 = Eigen::Vector3d;
-
-// Composition a * b (apply b, then a), inverse, and b relative to a (a^-1 * b).
-Root2 compose(const Root2& a, const Root2& b);
-Root2 inverse(const Root2& a);
-Root2 relative(const Root2& a, const Root2& b);
-// The fraction `alpha` of the rigid motion `a` along its screw (a rotation about a fixed
-// centre, or a translation): power(a, 0) is the identity, power(a, 1) == a and
-// power(a, s + t) == compose(power(a, s), power(a, t)). A body moving by power(a, t) from t = 0
-// to 1 turns at a constant rate along a circular arc (a straight line when a does not turn).
-// |heading| of `a` below 2 pi (less than a full turn).
-Root2 power(const Root2& a, double alpha);
-// Heading wrapped to (-pi, pi].
-double wrap_angle(double a);
+// Roots are RootTransforms (pipeline/core/se2.h): (x, y, heading), p -> R(heading) p + (x, y).
 
 // Per-vertex weights of the torso region of `template_positions` (3 x #V), summing to 1. Falls
 // back to every vertex when the region is empty (a character unlike a standing person).
@@ -42,21 +30,21 @@ std::vector<double> torso_weights(const Eigen::Matrix3Xd& template_positions);
 double body_height(const Eigen::Matrix3Xd& template_positions);
 
 // The root of one frame (3 x #V, template topology). `torso` from torso_weights().
-Root2 estimate_root(const Eigen::Matrix3Xd& frame, const Eigen::Matrix3Xd& template_positions,
+RootTransform estimate_root(const Eigen::Matrix3Xd& frame, const Eigen::Matrix3Xd& template_positions,
                     std::span<const double> torso);
 
 // The frame with `root` removed: R(-heading) (p - (x, y, 0)); z unchanged.
-Eigen::Matrix3Xd remove_root(const Eigen::Matrix3Xd& frame, const Root2& root);
+Eigen::Matrix3Xd remove_root(const Eigen::Matrix3Xd& frame, const RootTransform& root);
 // The inverse: a root-free shape placed at `root`.
-Eigen::Matrix3Xd apply_root(const Eigen::Matrix3Xd& shape, const Root2& root);
+Eigen::Matrix3Xd apply_root(const Eigen::Matrix3Xd& shape, const RootTransform& root);
 
 // Smooths a root curve in time: `passes` of the [1 2 1] / 4 filter on x, y and the unwrapped
 // heading, the first and last roots kept. Alignment noise makes the per-frame torso estimate
 // jitter from frame to frame; the gait's own sway (a cycle long) passes nearly unchanged.
-void smooth_roots(std::vector<Root2>* roots, int passes);
+void smooth_roots(std::vector<RootTransform>* roots, int passes);
 
 // Roots of a whole sequence with headings unwrapped (continuous across +-pi).
-std::vector<Root2> estimate_roots(std::span<const Eigen::Matrix3Xd> frames,
+std::vector<RootTransform> estimate_roots(std::span<const Eigen::Matrix3Xd> frames,
                                   const Eigen::Matrix3Xd& template_positions,
                                   std::span<const double> torso);
 

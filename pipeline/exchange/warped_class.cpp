@@ -132,7 +132,7 @@ WarpedClass read_warped_class(const std::filesystem::path& path) {
     t.frame_t = r.read_vector<double>();
     t.sample_frames = r.read_vector<double>();
     t.seconds = r.read_vector<double>();
-    t.roots = r.read_vector<Root2>();
+    t.roots = r.read_vector<RootTransform>();
     t.shapes = r.read_vector<Vec3f>();
     c.takes.push_back(std::move(t));
   }
@@ -145,7 +145,7 @@ nlohmann::json warped_class_summary(const WarpedClass& c) {
   using nlohmann::json;
   json takes = json::array();
   for (const WarpedTake& t : c.takes) {
-    const Root2& end = t.roots.back();
+    const RootTransform& end = t.roots.back();
     const double duration = t.seconds.back();
     json take = {{"take", t.name},
                  {"frames", t.num_frames},
@@ -153,9 +153,9 @@ nlohmann::json warped_class_summary(const WarpedClass& c) {
                  {"phase_offset", t.warp.offset},
                  {"frame_t", t.frame_t},
                  {"sample_frames", t.sample_frames},
-                 {"root_displacement_m", {end.x(), end.y()}},
-                 {"root_turn_deg", end.z() * 180 / std::numbers::pi},
-                 {"root_speed_m_per_s", std::hypot(end.x(), end.y()) / duration}};
+                 {"root_displacement_m", {end.x, end.y}},
+                 {"root_turn_deg", end.heading * 180 / std::numbers::pi},
+                 {"root_speed_m_per_s", std::hypot(end.x, end.y) / duration}};
     if (c.cyclic) {
       take["cycle_start_frame"] = t.cycle.start;
       take["cycle_frames"] = t.cycle.period;

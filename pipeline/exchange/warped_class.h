@@ -55,7 +55,7 @@ struct WarpedTake {
   // Per sample i (t_i = i / (F - 1)):
   std::vector<double> sample_frames;  // F: continuous frame position in the take
   std::vector<double> seconds;        // F: the take's own time since sample 0 [s]
-  std::vector<Root2> roots;           // F: root relative to sample 0
+  std::vector<RootTransform> roots;           // F: root relative to sample 0
   std::vector<Vec3f> shapes;          // F x #V (sample-major): body shape, root removed
 };
 

@@ -20,11 +20,11 @@
 #include "pipeline/core/error.h"
 #include "pipeline/core/image_io.h"
 #include "pipeline/core/log.h"
+#include "pipeline/core/se2.h"
 #include "runtime/asset.h"
 #include "runtime/character.h"
 #include "runtime/controller.h"
 #include "runtime/player.h"
-#include "runtime/root_math.h"
 #include "runtime/viewer/renderer.h"
 
 namespace fourd::viewer {

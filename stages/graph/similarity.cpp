@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "pipeline/core/error.h"
-#include "runtime/root_math.h"
+#include "pipeline/core/se2.h"
 
 namespace fourd::graph {
 

@@ -85,8 +85,8 @@ MotionSpace build_motion_space(const WarpedClass& c, const MotionspaceOptions& o
     for (int i = 0; i < c.num_samples; ++i) {
       const Vec3f* p = t.shapes.data() + static_cast<std::size_t>(i) * c.num_vertices;
       set_frame(&space.blend, k, i, std::span<const Vec3f>(p, c.num_vertices));
-      space.roots.push_back({static_cast<float>(t.roots[i].x()), static_cast<float>(t.roots[i].y()),
-                             static_cast<float>(t.roots[i].z())});
+      space.roots.push_back({static_cast<float>(t.roots[i].x), static_cast<float>(t.roots[i].y),
+                             static_cast<float>(t.roots[i].heading)});
       space.seconds.push_back(static_cast<float>(t.seconds[i]));
     }
   }

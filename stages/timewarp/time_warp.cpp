@@ -135,13 +135,18 @@ Eigen::Matrix3Xd shape_at(const LocalTake& take, double x) {
   return (1 - a) * take.shapes[i] + a * take.shapes[i + 1];
 }
 
-Root2 root_at(const LocalTake& take, double x) {
+// (1 - a) p + a q, component by component (headings are unwrapped).
+RootTransform mix_roots(const RootTransform& p, const RootTransform& q, double a) {
+  return {(1 - a) * p.x + a * q.x, (1 - a) * p.y + a * q.y, (1 - a) * p.heading + a * q.heading};
+}
+
+RootTransform root_at(const LocalTake& take, double x) {
   const int n = take.num_frames();
   const double c = std::clamp(x, 0.0, n - 1.0);
   const int i = std::min(static_cast<int>(std::floor(c)), std::max(n - 2, 0));
   const double a = c - i;
   if (a <= 0 || n == 1) return take.roots[i];
-  return (1 - a) * take.roots[i] + a * take.roots[i + 1];  // headings are unwrapped
+  return mix_roots(take.roots[i], take.roots[i + 1], a);
 }
 
 double shape_distance(const Eigen::Matrix3Xd& a, const Eigen::Matrix3Xd& b) {
@@ -428,16 +433,16 @@ Eigen::Matrix3Xd shape_at_phase(const LocalTake& take, const TakeTiming& timing,
   return shape_at(take, timing.start + f * timing.length) - f * gap;
 }
 
-Root2 root_at_phase(const LocalTake& take, const TakeTiming& timing, double u) {
+RootTransform root_at_phase(const LocalTake& take, const TakeTiming& timing, double u) {
   if (!timing.cyclic) return root_at(take, timing.frame_at(u));
   const double whole = std::floor(u);
-  Root2 r = root_at(take, timing.start + (u - whole) * timing.length);
+  RootTransform r = root_at(take, timing.start + (u - whole) * timing.length);
   // One cycle later the body repeats its motion relative to where the cycle started:
   // root(x + period) = W root(x) with W = root(end) root(start)^-1.
-  const Root2 w = compose(root_at(take, timing.start + timing.length),
-                          inverse(root_at(take, timing.start)));
-  const Root2 step = whole >= 0 ? w : inverse(w);
-  for (int k = 0; k < std::abs(static_cast<int>(whole)); ++k) r = compose(step, r);
+  const RootTransform w = root_compose(root_at(take, timing.start + timing.length),
+                                      root_inverse(root_at(take, timing.start)));
+  const RootTransform step = whole >= 0 ? w : root_inverse(w);
+  for (int k = 0; k < std::abs(static_cast<int>(whole)); ++k) r = root_compose(step, r);
   return r;
 }
 
@@ -447,44 +452,46 @@ LocalTake steady_cycle_root(LocalTake take, const TakeTiming& timing) {
   // Roots about the take's mean position c, so that a heading error of W does not turn into a
   // translation error the size of the distance from the world's origin.
   Eigen::Vector2d c = Eigen::Vector2d::Zero();
-  for (const Root2& r : take.roots) c += r.head<2>() / n;
-  auto centred = [&](Root2 r) {
-    r.head<2>() -= c;
+  for (const RootTransform& r : take.roots) c += Eigen::Vector2d(r.x, r.y) / n;
+  auto centred = [&](RootTransform r) {
+    r.x -= c.x();
+    r.y -= c.y();
     return r;
   };
   // Mean motion per cycle; the sway, periodic, cancels in each root(x + period) root(x)^-1.
-  const std::vector<Root2>& raw = take.raw_roots.empty() ? take.roots : take.raw_roots;
+  const std::vector<RootTransform>& raw = take.raw_roots.empty() ? take.roots : take.raw_roots;
   auto raw_at = [&](double x) {
     const int i = std::min(static_cast<int>(std::floor(x)), n - 2);
     const double a = std::clamp(x - i, 0.0, 1.0);
-    return Root2((1 - a) * raw[i] + a * raw[i + 1]);
+    return mix_roots(raw[i], raw[i + 1], a);
   };
-  Root2 w = Root2::Zero();
+  RootTransform w;
   int count = 0;
   for (int x = 0; x + period <= n - 1 + 1e-9; ++x, ++count) {
-    w += compose(centred(raw_at(x + period)), inverse(centred(raw[x])));
+    const RootTransform motion = root_compose(centred(raw_at(x + period)), root_inverse(centred(raw[x])));
+    w = {w.x + motion.x, w.y + motion.y, w.heading + motion.heading};
   }
   if (count == 0) {
     throw InputError(fmt::format("take {}: its cycle ({:.2f} frames) is longer than the take",
                                  take.name, period));
   }
-  w /= count;
+  w = {w.x / count, w.y / count, w.heading / count};
   // The steady root at the cycle's start, s, from the means over the cycle (midpoint samples):
   // heading(x_j) = s.heading + a_j w.heading, position(x_j) = R(a_j w.heading) s.position + t_j
-  // with (t_j, a_j w.heading) = power(w, a_j).
+  // with (t_j, a_j w.heading) = root_power(w, a_j).
   const int samples = std::max(8, static_cast<int>(std::ceil(8 * period)));
   double heading = 0;
   Eigen::Vector2d position = Eigen::Vector2d::Zero(), shift = Eigen::Vector2d::Zero();
   double mean_cos = 0, mean_sin = 0;
   for (int j = 0; j < samples; ++j) {
     const double a = (j + 0.5) / samples;
-    const Root2 r = centred(root_at(take, start + a * period));
-    const Root2 step = power(w, a);
-    heading += (r.z() - step.z()) / samples;
-    position += r.head<2>() / samples;
-    shift += step.head<2>() / samples;
-    mean_cos += std::cos(step.z()) / samples;
-    mean_sin += std::sin(step.z()) / samples;
+    const RootTransform r = centred(root_at(take, start + a * period));
+    const RootTransform step = root_power(w, a);
+    heading += (r.heading - step.heading) / samples;
+    position += Eigen::Vector2d(r.x, r.y) / samples;
+    shift += Eigen::Vector2d(step.x, step.y) / samples;
+    mean_cos += std::cos(step.heading) / samples;
+    mean_sin += std::sin(step.heading) / samples;
   }
   // Solve [mean_cos -mean_sin; mean_sin mean_cos] s.position = position - shift.
   const Eigen::Vector2d rhs = position - shift;
@@ -492,14 +499,15 @@ LocalTake steady_cycle_root(LocalTake take, const TakeTiming& timing) {
   if (!(det > 1e-6)) {
     throw InputError(fmt::format("take {}: turns {:.0f} degrees per cycle; a steady root needs less "
                                  "than a full turn",
-                                 take.name, w.z() * 180 / std::numbers::pi));
+                                 take.name, w.heading * 180 / std::numbers::pi));
   }
-  const Root2 root_start((mean_cos * rhs.x() + mean_sin * rhs.y()) / det,
-                         (-mean_sin * rhs.x() + mean_cos * rhs.y()) / det, heading);
+  const RootTransform root_start{(mean_cos * rhs.x() + mean_sin * rhs.y()) / det,
+                                 (-mean_sin * rhs.x() + mean_cos * rhs.y()) / det, heading};
   for (int f = 0; f < n; ++f) {
-    Root2 steady = compose(power(w, (f - start) / period), root_start);
-    steady.head<2>() += c;
-    take.shapes[f] = apply_root(take.shapes[f], relative(steady, take.roots[f]));
+    RootTransform steady = root_compose(root_power(w, (f - start) / period), root_start);
+    steady.x += c.x();
+    steady.y += c.y();
+    take.shapes[f] = apply_root(take.shapes[f], root_relative(steady, take.roots[f]));
     take.roots[f] = steady;
   }
   take.raw_roots.clear();

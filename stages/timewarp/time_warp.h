@@ -27,16 +27,16 @@ namespace fourd::timewarp {
 struct LocalTake {
   std::string name;
   std::vector<Eigen::Matrix3Xd> shapes;  // #frames, 3 x #V each, root removed
-  std::vector<Root2> roots;              // #frames, headings unwrapped
+  std::vector<RootTransform> roots;              // #frames, headings unwrapped
   // The per-frame roots before smoothing (empty: as `roots`). A cycle's mean motion is taken
   // from them: smoothing pins the take's ends, so its output is not periodic there.
-  std::vector<Root2> raw_roots;
+  std::vector<RootTransform> raw_roots;
   int num_frames() const { return static_cast<int>(shapes.size()); }
 };
 
 // Linear interpolation at a continuous frame position x (clamped to [0, n - 1]).
 Eigen::Matrix3Xd shape_at(const LocalTake& take, double x);
-Root2 root_at(const LocalTake& take, double x);
+RootTransform root_at(const LocalTake& take, double x);
 
 // Mean squared vertex distance [m^2].
 double shape_distance(const Eigen::Matrix3Xd& a, const Eigen::Matrix3Xd& b);
@@ -82,7 +82,7 @@ TakeTiming cyclic_timing(const Cycle& cycle);
 
 // Shape (closure-corrected for cycles) and world root at phase u.
 Eigen::Matrix3Xd shape_at_phase(const LocalTake& take, const TakeTiming& timing, double u);
-Root2 root_at_phase(const LocalTake& take, const TakeTiming& timing, double u);
+RootTransform root_at_phase(const LocalTake& take, const TakeTiming& timing, double u);
 
 // The steady root of a cyclic take: the body's trajectory without its per-step sway. The
 // per-frame roots (the torso's position and facing) weave from side to side and twist with

@@ -54,7 +54,7 @@ WarpedClass warp_class(const MotionClassConfig& motion, double fps, const Mesh& 
                                      "template has {}",
                                      motion.name, t.name, frame_name(f), t.shapes[f].cols(), nv));
       }
-      if (!t.shapes[f].allFinite() || !t.roots[f].allFinite()) {
+      if (!t.shapes[f].allFinite() || !t.roots[f].finite()) {
         throw InputError(fmt::format("motion class {}: take {} frame {} is not finite",
                                      motion.name, t.name, frame_name(f)));
       }
@@ -120,7 +120,7 @@ WarpedClass warp_class(const MotionClassConfig& motion, double fps, const Mesh& 
     w.timing = tk;
     w.warp = warp;
     const double u0 = warp.at(0);
-    const Root2 root0 = root_at_phase(take, tk, u0);
+    const RootTransform root0 = root_at_phase(take, tk, u0);
     w.shapes.resize(static_cast<std::size_t>(samples) * nv);
     for (int i = 0; i < samples; ++i) {
       const double t = static_cast<double>(i) / (samples - 1);
@@ -128,7 +128,7 @@ WarpedClass warp_class(const MotionClassConfig& motion, double fps, const Mesh& 
       w.sample_frames.push_back(tk.frame_at(u));
       w.seconds.push_back(tk.cyclic ? (u - u0) * tk.length / fps
                                     : (tk.frame_at(u) - tk.frame_at(u0)) / fps);
-      w.roots.push_back(relative(root0, root_at_phase(take, tk, u)));
+      w.roots.push_back(root_relative(root0, root_at_phase(take, tk, u)));
       // A cycle's last sample is its first: copy it, so the loop closes to the bit.
       const int source = (tk.cyclic && i == samples - 1) ? 0 : i;
       const Eigen::Matrix3Xd shape =
@@ -188,17 +188,17 @@ void run_timewarp(const Session& session, const StageArgs& args) {
     write_file_atomic(staged.path() / (motion.name + ".json"),
                       warped_class_summary(warped).dump(1));
     for (const WarpedTake& t : warped.takes) {
-      const Root2& end = t.roots.back();
+      const RootTransform& end = t.roots.back();
       if (warped.cyclic) {
         log::info("{} / {}: cycle frames {:.2f}-{:.2f} ({:.2f} frames, closure {:.1f} mm, {:.0f} %), phase "
                   "offset {:.3f}, {:.2f} m/s, {:.1f} deg/s",
                   motion.name, t.name, t.cycle.start, t.cycle.start + t.cycle.period,
                   t.cycle.period, 1000 * t.cycle.closure_rms, 100 * t.cycle.closure_ratio, t.warp.offset,
-                  std::hypot(end.x(), end.y()) / t.seconds.back(),
-                  end.z() * 180 / std::numbers::pi / t.seconds.back());
+                  std::hypot(end.x, end.y) / t.seconds.back(),
+                  end.heading * 180 / std::numbers::pi / t.seconds.back());
       } else {
         log::info("{} / {}: {} frames, {:.2f} s, root displacement {:.3f} m", motion.name, t.name,
-                  t.num_frames, t.seconds.back(), std::hypot(end.x(), end.y()));
+                  t.num_frames, t.seconds.back(), std::hypot(end.x, end.y));
       }
     }
     nlohmann::json report_class = {{"name", motion.name}, {"cyclic", motion.cyclic}};

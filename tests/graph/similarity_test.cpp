@@ -7,7 +7,7 @@
 #include <random>
 
 #include "pipeline/core/error.h"
-#include "runtime/root_math.h"
+#include "pipeline/core/se2.h"
 #include "tests/graph/test_graph.h"
 
 namespace fourd {

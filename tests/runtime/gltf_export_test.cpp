@@ -13,10 +13,10 @@
 
 #include "pipeline/core/error.h"
 #include "pipeline/core/files.h"
-#include "pipeline/gltf/gltf.h"
 #include "pipeline/core/mesh_io.h"
+#include "pipeline/core/se2.h"
+#include "pipeline/gltf/gltf.h"
 #include "runtime/mesh_sequence.h"
-#include "runtime/root_math.h"
 #include "tests/graph/test_graph.h"
 #include "tests/scratch_dir.h"
 

@@ -38,21 +38,21 @@ std::vector<Eigen::Matrix3Xd> swaying_walk(const test::Walker& w, const test::Wa
   std::vector<Eigen::Matrix3Xd> frames;
   for (int f = 0; f < spec.frames; ++f) {
     const double phase = test::walk_phase(spec, f);
-    const Root2 sway(0, lateral * std::sin(test::kTwoPi * phase),
-                     yaw * std::sin(test::kTwoPi * phase + 1));
+    const RootTransform sway{0, lateral * std::sin(test::kTwoPi * phase),
+                             yaw * std::sin(test::kTwoPi * phase + 1)};
     frames.push_back(apply_root(test::walk_shape(w, spec, phase),
-                                compose(test::walk_root(spec, f), sway)));
+                                root_compose(test::walk_root(spec, f), sway)));
   }
   return frames;
 }
 
 // Length of the ground-plane polyline through the roots over the distance between its ends.
-double length_over_chord(const std::vector<Root2>& roots) {
+double length_over_chord(const std::vector<RootTransform>& roots) {
   double length = 0;
   for (std::size_t i = 1; i < roots.size(); ++i) {
-    length += (roots[i].head<2>() - roots[i - 1].head<2>()).norm();
+    length += (test::xy(roots[i]) - test::xy(roots[i - 1])).norm();
   }
-  return length / (roots.back().head<2>() - roots.front().head<2>()).norm();
+  return length / (test::xy(roots.back()) - test::xy(roots.front())).norm();
 }
 
 TEST(RootMotion, TorsoIsTheUpperBodyNearTheAxis) {
@@ -75,20 +75,20 @@ TEST(RootMotion, TorsoIsTheUpperBodyNearTheAxis) {
 TEST(RootMotion, RecoversARigidGroundPlaneMotion) {
   const test::Walker w = test::make_walker();
   const std::vector<double> torso = torso_weights(w.mesh.positions);
-  const Root2 root(1.3, -0.7, 2.9);  // close to +-pi: the heading must not flip
+  const RootTransform root{1.3, -0.7, 2.9};  // close to +-pi: the heading must not flip
   const Eigen::Matrix3Xd moved = apply_root(w.mesh.positions, root);
-  const Root2 found = estimate_root(moved, w.mesh.positions, torso);
-  EXPECT_NEAR(found.x(), root.x(), 1e-9);
-  EXPECT_NEAR(found.y(), root.y(), 1e-9);
-  EXPECT_NEAR(wrap_angle(found.z() - root.z()), 0.0, 1e-9);
+  const RootTransform found = estimate_root(moved, w.mesh.positions, torso);
+  EXPECT_NEAR(found.x, root.x, 1e-9);
+  EXPECT_NEAR(found.y, root.y, 1e-9);
+  EXPECT_NEAR(wrap_heading(found.heading - root.heading), 0.0, 1e-9);
   EXPECT_LT(test::max_vertex_distance(remove_root(moved, found), w.mesh.positions), 1e-9);
 }
 
 TEST(RootMotion, ComposeAndInverseAreConsistent) {
-  const Root2 a(0.5, 1.0, 0.7), b(-0.2, 0.3, -2.0);
-  const Root2 ab = compose(a, b);
-  EXPECT_LT((relative(a, ab) - b).norm(), 1e-12);
-  EXPECT_LT(compose(a, inverse(a)).norm(), 1e-12);
+  const RootTransform a{0.5, 1.0, 0.7}, b{-0.2, 0.3, -2.0};
+  const RootTransform ab = root_compose(a, b);
+  EXPECT_LT((test::xyh(root_relative(a, ab)) - test::xyh(b)).norm(), 1e-12);
+  EXPECT_LT(test::xyh(root_compose(a, root_inverse(a))).norm(), 1e-12);
   const Eigen::Matrix3Xd p = Eigen::Matrix3Xd::Random(3, 5);
   EXPECT_LT(test::max_vertex_distance(apply_root(apply_root(p, b), a), apply_root(p, ab)), 1e-12);
 }
@@ -98,13 +98,13 @@ TEST(RootMotion, PowerMovesAlongTheScrew) {
   test::WalkSpec spec;
   spec.speed = 1.3;
   spec.turn_rate = 40 * kDeg;
-  const Root2 whole = test::walk_root(spec, 25);
+  const RootTransform whole = test::walk_root(spec, 25);
   for (double a : {0.0, 0.3, 1.0, 1.7, -0.4}) {
-    EXPECT_LT((power(whole, a) - test::walk_root(spec, 25 * a)).norm(), 1e-12) << a;
+    EXPECT_LT((test::xyh(root_power(whole, a)) - test::xyh(test::walk_root(spec, 25 * a))).norm(), 1e-12) << a;
   }
-  EXPECT_LT((power(Root2(0.8, -0.1, 0.0), 0.25) - Root2(0.2, -0.025, 0.0)).norm(), 1e-12);
-  const Root2 a(0.5, 1.0, 2.5);
-  EXPECT_LT((compose(power(a, 0.3), power(a, 0.7)) - a).norm(), 1e-12);
+  EXPECT_LT((test::xyh(root_power(RootTransform{0.8, -0.1, 0.0}, 0.25)) - Eigen::Vector3d(0.2, -0.025, 0.0)).norm(), 1e-12);
+  const RootTransform a{0.5, 1.0, 2.5};
+  EXPECT_LT((test::xyh(root_compose(root_power(a, 0.3), root_power(a, 0.7))) - test::xyh(a)).norm(), 1e-12);
 }
 
 TEST(RootMotion, HeadingsOfATurningWalkAreUnwrapped) {
@@ -116,30 +116,30 @@ TEST(RootMotion, HeadingsOfATurningWalkAreUnwrapped) {
   const LocalTake take = local_walk(w, spec, "turn");
   for (int f = 0; f < spec.frames; ++f) {
     // The torso twists by up to 0.05 rad with the gait; the root follows the walk's heading.
-    EXPECT_NEAR(take.roots[f].z(), test::walk_root(spec, f).z(), 0.06) << "frame " << f;
+    EXPECT_NEAR(take.roots[f].heading, test::walk_root(spec, f).heading, 0.06) << "frame " << f;
   }
 }
 
 // Frame-to-frame jitter on a steady walk's root is damped, a slow sway (40 frames a period)
 // is kept, and the ends stay where they were.
 TEST(RootMotion, SmoothingDampsJitterAndKeepsSlowSway) {
-  std::vector<Root2> roots;
+  std::vector<RootTransform> roots;
   for (int f = 0; f < 60; ++f) {
     const double jitter = (f % 2 ? 1 : -1) * 0.01;  // 1 cm, alternating every frame
     const double sway = 0.03 * std::sin(2 * std::numbers::pi * f / 40.0);
-    roots.emplace_back(0.05 * f, sway + jitter, 0.002 * f);
+    roots.push_back({0.05 * f, sway + jitter, 0.002 * f});
   }
-  const std::vector<Root2> before = roots;
+  const std::vector<RootTransform> before = roots;
   smooth_roots(&roots, 8);
   EXPECT_EQ(roots.front(), before.front());
   EXPECT_EQ(roots.back(), before.back());
   double jitter_left = 0, sway_kept = 0;
   for (int f = 10; f < 50; ++f) {
     const double sway = 0.03 * std::sin(2 * std::numbers::pi * f / 40.0);
-    jitter_left = std::max(jitter_left, std::abs(roots[f].y() - sway));
-    sway_kept = std::max(sway_kept, std::abs(roots[f].y()));
-    EXPECT_NEAR(roots[f].x(), 0.05 * f, 1e-9);  // a straight line is left alone
-    EXPECT_NEAR(roots[f].z(), 0.002 * f, 1e-9);
+    jitter_left = std::max(jitter_left, std::abs(roots[f].y - sway));
+    sway_kept = std::max(sway_kept, std::abs(roots[f].y));
+    EXPECT_NEAR(roots[f].x, 0.05 * f, 1e-9);  // a straight line is left alone
+    EXPECT_NEAR(roots[f].heading, 0.002 * f, 1e-9);
   }
   EXPECT_LT(jitter_left, 0.003);  // 1 cm of jitter -> under 3 mm (sway attenuated a little)
   EXPECT_GT(sway_kept, 0.025);
@@ -173,11 +173,11 @@ TEST(Cycle, RootOfTheNextCycleContinuesTheMotion) {
   const LocalTake take = local_walk(w, spec, "walk");
   const TakeTiming timing = cyclic_timing(Cycle{0, 12, 0, 1});
   // Phase 1.5 lies in the next cycle: the walk's root 18 frames on, although the take ends at 12.
-  const Root2 r = root_at_phase(take, timing, 1.5);
-  const Root2 truth = test::walk_root(spec, 18);
-  EXPECT_NEAR(r.x(), truth.x(), 0.02);
-  EXPECT_NEAR(r.y(), truth.y(), 0.02);
-  EXPECT_NEAR(r.z(), truth.z(), 0.06);
+  const RootTransform r = root_at_phase(take, timing, 1.5);
+  const RootTransform truth = test::walk_root(spec, 18);
+  EXPECT_NEAR(r.x, truth.x, 0.02);
+  EXPECT_NEAR(r.y, truth.y, 0.02);
+  EXPECT_NEAR(r.heading, truth.heading, 0.06);
 }
 
 // The per-frame roots of a swaying walk weave; its steady root is the walk's own, and the
@@ -196,18 +196,18 @@ TEST(Cycle, SteadyRootLeavesTheSwayInTheShape) {
     const LocalTake take = make_local_take("sway", frames, w.mesh.positions, torso, 8);
     const TakeTiming timing = cyclic_timing(find_cycle(take, CycleOptions{}));
     const LocalTake steady = steady_cycle_root(take, timing);
-    std::vector<Root2> truth, cycle_weaving, cycle_steady;
+    std::vector<RootTransform> truth, cycle_weaving, cycle_steady;
     for (int f = 0; f < spec.frames; ++f) {
       truth.push_back(test::walk_root(spec, f));
       EXPECT_LT(test::max_vertex_distance(apply_root(steady.shapes[f], steady.roots[f]), frames[f]),
                 1e-9);
       if (f < timing.start || f > timing.start + timing.length) continue;
       // Over the cycle (beyond it, the small error of the turn per cycle accumulates).
-      EXPECT_LT((steady.roots[f].head<2>() - truth[f].head<2>()).norm(), 0.005)
+      EXPECT_LT((test::xy(steady.roots[f]) - test::xy(truth[f])).norm(), 0.005)
           << "turn " << turn << " frame " << f;
-      EXPECT_NEAR(steady.roots[f].z(), truth[f].z(), 0.5 * kDeg) << "turn " << turn << " frame " << f;
+      EXPECT_NEAR(steady.roots[f].heading, truth[f].heading, 0.5 * kDeg) << "turn " << turn << " frame " << f;
     }
-    std::vector<Root2> cycle_truth;
+    std::vector<RootTransform> cycle_truth;
     for (int i = 0; i <= 60; ++i) {  // the cycle, 4 samples per frame
       const double x = timing.start + i / 60.0 * timing.length;
       cycle_truth.push_back(test::walk_root(spec, x));
@@ -245,15 +245,15 @@ TEST(Cycle, WarpedCyclesHaveSteadyRoots) {
     for (std::size_t k = 0; k < specs.size(); ++k) {
       const WarpedTake& t = warped.takes[k];
       const double seconds = t.seconds.back();
-      std::vector<Root2> truth;
+      std::vector<RootTransform> truth;
       for (int i = 0; i <= 60; ++i) truth.push_back(test::walk_root(specs[k], i / 60.0 * specs[k].cycle_frames));
       EXPECT_NEAR(length_over_chord(t.roots), length_over_chord(truth), 0.002) << t.name << " turn " << turn;
       EXPECT_NEAR(seconds, specs[k].cycle_frames / 25, 0.01) << t.name;
-      const Root2& end = t.roots.back();
-      EXPECT_NEAR(std::hypot(end.x(), end.y()), (truth.back().head<2>() - truth.front().head<2>()).norm(), 0.01) << t.name;
-      EXPECT_NEAR(end.z(), specs[k].turn_rate * seconds, 1 * kDeg) << t.name;
+      const RootTransform& end = t.roots.back();
+      EXPECT_NEAR(std::hypot(end.x, end.y), (test::xy(truth.back()) - test::xy(truth.front())).norm(), 0.01) << t.name;
+      EXPECT_NEAR(end.heading, specs[k].turn_rate * seconds, 1 * kDeg) << t.name;
       for (std::size_t i = 0; i < t.roots.size(); ++i) {
-        EXPECT_NEAR(t.roots[i].z(), end.z() * t.seconds[i] / seconds, 0.5 * kDeg)
+        EXPECT_NEAR(t.roots[i].heading, end.heading * t.seconds[i] / seconds, 0.5 * kDeg)
             << t.name << " turn " << turn << " sample " << i;
       }
     }

@@ -76,9 +76,9 @@ TEST(TimewarpStage, RegistersTakesAndSeparatesRootMotion) {
   const double speeds[2] = {1.0, 1.6};
   for (int k = 0; k < 2; ++k) {
     const WarpedTake& t = walk.takes[k];
-    const Root2& end = t.roots.back();
-    EXPECT_NEAR(std::hypot(end.x(), end.y()) / t.seconds.back(), speeds[k], 0.02) << t.name;
-    EXPECT_NEAR(end.z(), 0.0, 0.02) << t.name;
+    const RootTransform& end = t.roots.back();
+    EXPECT_NEAR(std::hypot(end.x, end.y) / t.seconds.back(), speeds[k], 0.02) << t.name;
+    EXPECT_NEAR(end.heading, 0.0, 0.02) << t.name;
   }
   EXPECT_NEAR(walk.takes[0].seconds.back(), 15 / 25.0, 0.01);
   EXPECT_NEAR(walk.takes[1].seconds.back(), 12 / 25.0, 0.01);
@@ -115,8 +115,8 @@ TEST(TimewarpStage, RegistersTakesAndSeparatesRootMotion) {
   EXPECT_FALSE(jump.cyclic);
   const double lengths[2] = {0.6, 1.2};
   for (int k = 0; k < 2; ++k) {
-    const Root2& end = jump.takes[k].roots.back();
-    EXPECT_NEAR(std::hypot(end.x(), end.y()), lengths[k], 0.01);
+    const RootTransform& end = jump.takes[k].roots.back();
+    EXPECT_NEAR(std::hypot(end.x, end.y), lengths[k], 0.01);
   }
   EXPECT_EQ(stray_folders(s.root()), 0);
 }

@@ -98,8 +98,12 @@ inline Eigen::Matrix3Xd walk_shape(const Walker& w, const WalkSpec& s, double ph
                      0.05 * std::sin(kTwoPi * phase));
 }
 
+// A root's ground position, and the root as a vector (x, y, heading), for comparisons.
+inline Eigen::Vector2d xy(const RootTransform& r) { return {r.x, r.y}; }
+inline Eigen::Vector3d xyh(const RootTransform& r) { return {r.x, r.y, r.heading}; }
+
 // World root of a walk at frame f: (x, y, heading) integrated along a circular arc.
-inline Root2 walk_root(const WalkSpec& s, double f) {
+inline RootTransform walk_root(const WalkSpec& s, double f) {
   const double time = f / s.fps;
   const double heading = s.start_heading + s.turn_rate * time;
   Eigen::Vector2d p = s.start_position;

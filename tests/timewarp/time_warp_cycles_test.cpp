@@ -87,7 +87,7 @@ LocalTake make_take(const std::string& name, const Body& body, double period, in
     Eigen::Matrix3Xd x = body(start_phase + f / period);
     for (Eigen::Index i = 0; i < x.size(); ++i) x.data()[i] += noise(rng);
     take.shapes.push_back(x);
-    take.roots.push_back(Root2::Zero());
+    take.roots.push_back(RootTransform{});
   }
   return take;
 }
@@ -173,7 +173,7 @@ TEST(Cycles, ALongTakeYieldsItsCyclesAndItsPausesAsOneShots) {
     Eigen::Matrix3Xd x = biped(phase);
     for (Eigen::Index i = 0; i < x.size(); ++i) x.data()[i] += noise(rng);
     take.shapes.push_back(x);
-    take.roots.push_back(Root2::Zero());
+    take.roots.push_back(RootTransform{});
   }
   const TakeSegments s = find_cycles(take, CycleOptions{});
   EXPECT_NEAR(s.period, period, 0.5);
@@ -207,7 +207,7 @@ TEST(Cycles, AMotionThatDoesNotLoopIsOneOneShot) {
     Eigen::Matrix3Xd x = biped(0.0);
     x.row(2) += Eigen::RowVectorXd::Constant(x.cols(), 0.5 * a * a);
     take.shapes.push_back(x);
-    take.roots.push_back(Root2::Zero());
+    take.roots.push_back(RootTransform{});
   }
   const TakeSegments s = find_cycles(take, CycleOptions{});
   EXPECT_TRUE(s.cycles.empty());
