@@ -16,6 +16,23 @@ inline double triangle_area(const Mesh& mesh, const Tri& t) {
   return 0.5 * (b - a).cross(c - a).norm();
 }
 
+// Strain of every edge of a deformed mesh: calls f(v, w, change) once per edge {v, w} of
+// `rings` (one-rings of `rest`; by its lower-numbered end v), change = |p_v - p_w| / |r_v - r_w|
+// - 1 for the deformed `positions` p and the rest positions r; edges of zero rest length are
+// skipped.
+template <class F>
+void for_each_edge_strain(const Mesh& rest, const std::vector<std::vector<int>>& rings,
+                          const std::vector<Vec3f>& positions, F&& f) {
+  for (std::size_t v = 0; v < rings.size(); ++v) {
+    for (int w : rings[v]) {
+      if (static_cast<std::size_t>(w) <= v) continue;
+      const double length = (rest.positions[v] - rest.positions[w]).norm();
+      if (length <= 0) continue;
+      f(v, w, (positions[v] - positions[w]).norm() / length - 1);
+    }
+  }
+}
+
 // Total triangle area [m^2].
 double surface_area(const Mesh& mesh);
 

@@ -9,6 +9,7 @@
 #include <cctype>
 #include <cmath>
 #include <fmt/ranges.h>
+#include <functional>
 #include <limits>
 #include <map>
 #include <mutex>
@@ -894,6 +895,30 @@ bool descends_from(const Registrations& reg, int a, int k) {
 // least stretched of the about closest is kept (least_stretched_close_fit), and the frames
 // registered from a refitted frame are registered again from its new fit, each keeping the same
 // rule's choice of its two fits.
+// Parents to register frame k from again: its neighbours in time first, then the `similar` most
+// similar frames by shape distance; each aligned, not k's descendant and `eligible`.
+std::vector<int> retry_parents(const Plan& plan, const Registrations& reg, int k, int similar_count,
+                               const std::function<bool(int)>& eligible) {
+  const int n = static_cast<int>(plan.usable.size());
+  const FrameStatus& s = plan.frames[plan.usable[k]].status;
+  std::vector<int> candidates;
+  std::vector<std::pair<double, int>> similar;
+  for (int p = 0; p < n; ++p) {
+    if (p == k || !reg.aligned[p] || !eligible(p) || descends_from(reg, p, k)) continue;
+    const FrameStatus& o = plan.frames[plan.usable[p]].status;
+    if (o.take == s.take && std::abs(o.frame - s.frame) == 1) {
+      candidates.push_back(p);
+    } else {
+      similar.push_back({plan.distances.value(k, p), p});
+    }
+  }
+  std::sort(similar.begin(), similar.end());
+  for (int i = 0; i < similar_count && i < static_cast<int>(similar.size()); ++i) {
+    candidates.push_back(similar[i].second);
+  }
+  return candidates;
+}
+
 void refit_outliers(Plan& plan, Registrations& reg, TreeRegistration& registration,
                     const AlignOptions& options) {
   const int n = static_cast<int>(plan.usable.size());
@@ -914,21 +939,8 @@ void refit_outliers(Plan& plan, Registrations& reg, TreeRegistration& registrati
     FrameStatus& s = status(k);
     const FitStats first = reg.fits[k].stats;
     const double before = first.surface_rms;
-    std::vector<int> candidates;  // neighbours in time first, then the most similar frames
-    std::vector<std::pair<double, int>> similar;
-    for (int p = 0; p < n; ++p) {
-      if (p == k || !reg.aligned[p] || reg.tried[k].count(p) || descends_from(reg, p, k)) continue;
-      const FrameStatus& o = status(p);
-      if (o.take == s.take && std::abs(o.frame - s.frame) == 1) {
-        candidates.push_back(p);
-      } else {
-        similar.push_back({plan.distances.value(k, p), p});
-      }
-    }
-    std::sort(similar.begin(), similar.end());
-    for (int i = 0; i < options.reparent_attempts && i < static_cast<int>(similar.size()); ++i) {
-      candidates.push_back(similar[i].second);
-    }
+    const std::vector<int> candidates = retry_parents(
+        plan, reg, k, options.reparent_attempts, [&](int p) { return !reg.tried[k].count(p); });
     if (!registration.refit(k, candidates)) {
       s.flags.push_back("outlier_fit");
       log::warn("{}: fit rms {:.1f} mm, over the outlier limit {:.1f} mm; no fit from another "
@@ -1106,24 +1118,10 @@ void retry_wrong_frames(const Plan& plan, Registrations& reg, TreeRegistration& 
   if (!wrong.empty()) log::info("self-diagnosis: {} frames wrong on their surface, registering them again", wrong.size());
   for (const auto& [before, k] : wrong) {
     const FrameStatus& s = status(k);
-    std::vector<int> candidates;
-    std::vector<std::pair<double, int>> similar;
-    for (int p = 0; p < n; ++p) {
-      if (p == k || !reg.aligned[p] || reg.parent_of[k] == p || !diagnoses[p].verdicts.empty() ||
-          descends_from(reg, p, k)) {
-        continue;
-      }
-      const FrameStatus& o = status(p);
-      if (o.take == s.take && std::abs(o.frame - s.frame) == 1) {
-        candidates.push_back(p);
-      } else {
-        similar.push_back({plan.distances.value(k, p), p});
-      }
-    }
-    std::sort(similar.begin(), similar.end());
-    for (int i = 0; i < options.reparent_attempts && i < static_cast<int>(similar.size()); ++i) {
-      candidates.push_back(similar[i].second);
-    }
+    const std::vector<int> candidates =
+        retry_parents(plan, reg, k, options.reparent_attempts, [&](int p) {
+          return reg.parent_of[k] != p && diagnoses[p].verdicts.empty();
+        });
     diagnoses.mark_retried(k);
     std::vector<std::pair<int, Fit>> fits = registration.passing_fits(k, candidates);
     double best = before;

@@ -8,6 +8,7 @@
 
 #include "pipeline/core/statistics.h"
 #include "pipeline/geometry/geodesic.h"
+#include "pipeline/geometry/measures.h"
 
 namespace fourd::align {
 
@@ -117,17 +118,11 @@ std::vector<RegionCues> region_cues(const TemplateModel& model, const TemplateRe
   // Stretch: the patch's edges (by their lower-numbered end).
   std::vector<double> stretch_sum(count, 0);
   std::vector<int> edges(count, 0);
-  for (std::size_t v = 0; v < nv; ++v) {
-    for (int w : model.rings[v]) {
-      if (static_cast<std::size_t>(w) <= v) continue;
-      const double rest = (model.rest.positions[v] - model.rest.positions[w]).norm();
-      if (rest <= 0) continue;
-      const double change = (positions[v] - positions[w]).norm() / rest - 1;
-      const int k = regions.of_vertex[v];
-      stretch_sum[k] += change * change;
-      ++edges[k];
-    }
-  }
+  for_each_edge_strain(model.rest, model.rings, positions, [&](std::size_t v, int, double change) {
+    const int k = regions.of_vertex[v];
+    stretch_sum[k] += change * change;
+    ++edges[k];
+  });
   for (std::size_t k = 0; k < count; ++k) {
     if (edges[k]) cues[k].stretch_rms = std::sqrt(stretch_sum[k] / edges[k]);
   }

@@ -10,6 +10,7 @@
 
 #include "pipeline/core/error.h"
 #include "pipeline/core/log.h"
+#include "pipeline/geometry/measures.h"
 #include "stages/align/registration_internal.h"
 
 namespace fourd::align {
@@ -278,16 +279,10 @@ FitStats evaluate_fit(const TemplateModel& model, const std::vector<Vec3f>& posi
   // Stretch: how far the fit is from an isometry of the template (edge lengths).
   double stretch_sum = 0;
   std::size_t edges = 0;
-  for (std::size_t v = 0; v < nv; ++v) {
-    for (int w : model.rings[v]) {
-      if (static_cast<std::size_t>(w) <= v) continue;
-      const double rest = (model.rest.positions[v] - model.rest.positions[w]).norm();
-      if (rest <= 0) continue;
-      const double change = (positions[v] - positions[w]).norm() / rest - 1;
-      stretch_sum += change * change;
-      ++edges;
-    }
-  }
+  for_each_edge_strain(model.rest, model.rings, positions, [&](std::size_t, int, double change) {
+    stretch_sum += change * change;
+    ++edges;
+  });
   stats.stretch_rms = edges ? std::sqrt(stretch_sum / edges) : 0.0;
 
   stats.flipped_triangles = static_cast<int>(folded_triangles(model, positions).size());
