@@ -62,7 +62,7 @@ struct SessionConfig {
   double fps = 25;  // capture frame rate [frames/s]
   std::vector<MotionClassConfig> motions;
   std::vector<TransitionConfig> transitions;
-  // Stages that also run on inputs derived from ground truth (synthetic sessions; DESIGN.md
+  // Stages that also run on inputs derived from ground truth (synthetic sessions; docs/design.md,
   // "Oracle inputs"), so validation reports pipeline and oracle numbers side by side.
   std::vector<std::string> oracle;
   // Preset files (relative to the session folder, e.g. ../config/presets/preview.yaml), each
