@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <opencv2/imgproc.hpp>
 
 namespace fourd::segment {
@@ -21,6 +22,14 @@ constexpr int kMinCameras = 3;
 constexpr int kToleranceFrom = 4;
 // Cameras that must see a voxel as surely foreground for it to recover doubtful pixels.
 constexpr int kMinConfirming = 3;
+// recover_hidden: the step along a pixel's ray [voxel edges]; how far inside another camera's
+// silhouette a point must project to count as seen there [px]; and how many of the other
+// cameras that see it may disagree: none. With one (as the coarse check allows) the others'
+// hull is wider than the performer by several pixels beside the body: on the plate studio
+// segment.iou_mean 0.9651 (worst 0.9264) with one, 0.9660 (worst 0.9431) with none.
+constexpr double kHiddenStep = 0.25;
+constexpr float kHiddenMargin = 1.0f;
+constexpr int kHiddenTolerance = 0;
 
 // Per camera, the distance of every pixel to the nearest foreground pixel of `masks[c]`.
 std::vector<cv::Mat> distance_to_foreground(const std::vector<cv::Mat>& masks) {
@@ -79,6 +88,7 @@ ConsistencyCheck::ConsistencyCheck(const std::vector<Camera>& cameras) : cameras
   const double step = 2.0 * reach / (kScan - 1);
   box.min() -= Eigen::Vector3d::Constant(step);
   box.max() += Eigen::Vector3d::Constant(step);
+  box_ = box;
   const Eigen::Vector3d voxel = box.sizes() / kGrid;
   const float half_diagonal = static_cast<float>(0.5 * voxel.norm());
   std::vector<std::vector<Eigen::Vector3d>> centres(kGrid);
@@ -131,15 +141,8 @@ cv::Mat ConsistencyCheck::splat(std::size_t c, const std::vector<std::uint8_t>& 
   return covered;
 }
 
-std::vector<double> ConsistencyCheck::explained(const std::vector<cv::Mat>& silhouettes) const {
+std::vector<std::uint8_t> ConsistencyCheck::carve(const std::vector<cv::Mat>& distance) const {
   const std::size_t n = cameras_.size();
-  std::vector<double> out(n, -1.0);
-  if (!usable_ || silhouettes.size() != n) return out;
-  // Per camera, the distance of every pixel to the nearest foreground pixel: a voxel's sphere
-  // meets the silhouette when its centre projects within its radius of it.
-  const std::vector<cv::Mat> distance = distance_to_foreground(silhouettes);
-  std::vector<int> area(n, 0);
-  for (std::size_t c = 0; c < n; ++c) area[c] = cv::countNonZero(silhouettes[c]);
   const int tolerance = static_cast<int>(n) >= kToleranceFrom ? 1 : 0;
   std::vector<std::uint8_t> kept(centres_.size(), 0);
   tbb::parallel_for(std::size_t{0}, centres_.size(), [&](std::size_t v) {
@@ -153,6 +156,19 @@ std::vector<double> ConsistencyCheck::explained(const std::vector<cv::Mat>& silh
     }
     kept[v] = 1;
   });
+  return kept;
+}
+
+std::vector<double> ConsistencyCheck::explained(const std::vector<cv::Mat>& silhouettes) const {
+  const std::size_t n = cameras_.size();
+  std::vector<double> out(n, -1.0);
+  if (!usable_ || silhouettes.size() != n) return out;
+  // Per camera, the distance of every pixel to the nearest foreground pixel: a voxel's sphere
+  // meets the silhouette when its centre projects within its radius of it.
+  const std::vector<cv::Mat> distance = distance_to_foreground(silhouettes);
+  std::vector<int> area(n, 0);
+  for (std::size_t c = 0; c < n; ++c) area[c] = cv::countNonZero(silhouettes[c]);
+  const std::vector<std::uint8_t> kept = carve(distance);
   tbb::parallel_for(std::size_t{0}, n, [&](std::size_t c) {
     if (area[c] == 0) return;
     const cv::Mat covered = splat(c, kept, 1.0f);
@@ -188,6 +204,73 @@ void ConsistencyCheck::recover(std::vector<cv::Mat>& silhouettes,
     // The voxels' inscribed spheres: half their edge, not their half-diagonal.
     silhouettes[c] |= splat(c, kept, 1.0f / std::sqrt(3.0f)) & doubtful[c];
   });
+}
+
+void ConsistencyCheck::recover_hidden(std::vector<cv::Mat>& silhouettes,
+                                      const std::vector<cv::Mat>& candidates,
+                                      bool above_floor) const {
+  const std::size_t n = cameras_.size();
+  if (!usable_ || silhouettes.size() != n || candidates.size() != n) return;
+  const std::vector<std::uint8_t> kept = carve(distance_to_foreground(silhouettes));
+  // Per camera, every pixel's distance to the silhouette's outside: inside by the margin.
+  std::vector<cv::Mat> depth_in(n);
+  for (std::size_t c = 0; c < n; ++c) {
+    cv::distanceTransform(silhouettes[c] != 0, depth_in[c], cv::DIST_L2, cv::DIST_MASK_3);
+  }
+  const double step = kHiddenStep * (box_.sizes().maxCoeff() / kGrid);
+  std::vector<cv::Mat> found(n);
+  tbb::parallel_for(std::size_t{0}, n, [&](std::size_t c) {
+    const Camera& cam = cameras_[c];
+    const cv::Mat tried = splat(c, kept, 1.0f) & (silhouettes[c] == 0) & candidates[c];
+    found[c] = cv::Mat::zeros(tried.size(), CV_8U);
+    // A point is the performer's when the other cameras that see it all (but
+    // kHiddenTolerance) see it inside their silhouettes, at least kMinConfirming of them.
+    auto inside = [&](const Eigen::Vector3d& p) {
+      int rejected = 0, confirming = 0;
+      for (std::size_t k = 0; k < n; ++k) {
+        if (k == c) continue;
+        const Camera& other = cameras_[k];
+        Eigen::Vector2d px;
+        if (other.depth(p) <= 0 || !other.project(p, &px) || !other.in_image(px)) continue;
+        const int u = static_cast<int>(px.x()), v = static_cast<int>(px.y());
+        if (depth_in[k].at<float>(v, u) >= kHiddenMargin) {
+          ++confirming;
+        } else if (++rejected > kHiddenTolerance) {
+          return false;
+        }
+      }
+      return confirming >= kMinConfirming;
+    };
+    for (int y = 0; y < tried.rows; ++y) {
+      const std::uint8_t* t = tried.ptr<std::uint8_t>(y);
+      std::uint8_t* out = found[c].ptr<std::uint8_t>(y);
+      for (int x = 0; x < tried.cols; ++x) {
+        if (!t[x]) continue;
+        const Ray ray = cam.unproject(Eigen::Vector2d(x + 0.5, y + 0.5));
+        // The ray's stretch inside the checked volume (and above the floor).
+        double t0 = 0, t1 = std::numeric_limits<double>::infinity();
+        for (int a = 0; a < 3; ++a) {
+          const double o = ray.origin[a], d = ray.direction[a];
+          double lo = box_.min()[a], hi = box_.max()[a];
+          if (a == 2 && above_floor) lo = std::max(lo, 0.0);
+          if (std::abs(d) < 1e-12) {
+            if (o < lo || o > hi) t1 = -1;
+            continue;
+          }
+          const double ta = (lo - o) / d, tb = (hi - o) / d;
+          t0 = std::max(t0, std::min(ta, tb));
+          t1 = std::min(t1, std::max(ta, tb));
+        }
+        for (double s = t0 + 0.5 * step; s < t1; s += step) {
+          if (inside(ray.origin + s * ray.direction)) {
+            out[x] = 255;
+            break;
+          }
+        }
+      }
+    }
+  });
+  for (std::size_t c = 0; c < n; ++c) silhouettes[c] |= found[c];
 }
 
 }  // namespace fourd::segment

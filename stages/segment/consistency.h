@@ -33,6 +33,17 @@ class ConsistencyCheck {
   // and stays background. Then cleaned up again by the caller.
   void recover(std::vector<cv::Mat>& silhouettes, const std::vector<cv::Mat>& doubtful) const;
 
+  // The performer where one camera cannot tell it from the background (blue shoes over a blue
+  // stripe of the rug, skin over a beige floor, a shoe darker than the floor by a shadow's
+  // factor): adds to each silhouette the pixels of `candidates[c]` (CV_8UC1) outside it whose
+  // ray passes a point that every other camera seeing it sees inside its silhouette by
+  // kHiddenMargin px, at least kMinConfirming of them. Only pixels the coarse hull covers are
+  // tried, along their ray inside the checked volume, above the floor z = 0 when `above_floor`.
+  // The test is per pixel, not per voxel: the coarse hull alone fills the shadow between the
+  // feet.
+  void recover_hidden(std::vector<cv::Mat>& silhouettes, const std::vector<cv::Mat>& candidates,
+                      bool above_floor) const;
+
   bool usable() const { return usable_; }
   // The point the cameras' optical axes pass nearest and the cameras' median distance from it
   // (valid when has_aim(): at least kMinCameras cameras whose axes are not all parallel).
@@ -43,12 +54,16 @@ class ConsistencyCheck {
  private:
   // Camera c's image of the `kept` voxels, each a disc of `scale` times its bounding sphere's.
   cv::Mat splat(std::size_t c, const std::vector<std::uint8_t>& kept, float scale) const;
+  // The voxels whose sphere meets the silhouette (`distance`: to its foreground) of every
+  // camera that sees them but the tolerated one.
+  std::vector<std::uint8_t> carve(const std::vector<cv::Mat>& distance) const;
 
   const std::vector<Camera>& cameras_;
   std::vector<Eigen::Vector3d> centres_;     // voxel centres seen by enough cameras
   std::vector<std::int32_t> pixel_;          // [voxel * cameras + camera]: pixel index or -1
   std::vector<float> radius_px_;             // [voxel * cameras + camera]: projected radius
   Eigen::Vector3d centre_ = Eigen::Vector3d::Zero();
+  Eigen::AlignedBox3d box_;                  // the checked volume
   double reach_ = 0;
   bool usable_ = false;
 };

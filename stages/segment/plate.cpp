@@ -202,7 +202,7 @@ cv::Vec3d background_gain(const cv::Mat& bgr, const PlateModel& plate) {
 }
 
 cv::Mat plate_silhouette(const cv::Mat& bgr, const PlateModel& plate,
-                         const SegmentOptions& options, cv::Mat* shadow_like) {
+                         const SegmentOptions& options, cv::Mat* shadow_like, cv::Mat* off_plate) {
   if (bgr.size() != plate.mean.size()) {
     throw InputError(fmt::format("frame of {}x{} against plates of {}x{}", bgr.cols, bgr.rows,
                                  plate.mean.cols, plate.mean.rows));
@@ -215,7 +215,7 @@ cv::Mat plate_silhouette(const cv::Mat& bgr, const PlateModel& plate,
   cv::Mat background(bgr.size(), CV_32FC3);
   cv::Mat sure_fg(bgr.size(), CV_8U), sure_bg(bgr.size(), CV_8U), midpoint(bgr.size(), CV_8U);
   const float mid = static_cast<float>(0.5 * (kSureBackground + kSureForeground));
-  cv::Mat shade_only = cv::Mat::zeros(bgr.size(), CV_8U);
+  cv::Mat shade_only = cv::Mat::zeros(bgr.size(), CV_8U), off = cv::Mat::zeros(bgr.size(), CV_8U);
   const bool shadows_anywhere = plate.shadow_region.empty();
   // A shadow darkens the plate's texture, which shows through it; the performer hides it. Per
   // pixel, the correlation of the frame's and the plate's brightness over a small window,
@@ -248,6 +248,10 @@ cv::Mat plate_silhouette(const cv::Mat& bgr, const PlateModel& plate,
       b[c] = d <= kSureBackground ? 255 : 0;
       // Background only by the shadow rule: clearly darker than the plate.
       if (b[c] && (1.0f - alpha) * norm_b > kSureForeground * sigma) shade_only.at<std::uint8_t>(r, c) = 255;
+      // Off the plate by more than the noise, shadow or not.
+      if (std::max(off_chroma, std::abs(alpha - 1.0f) * norm_b) > kSureBackground * sigma) {
+        off.at<std::uint8_t>(r, c) = 255;
+      }
       u[c] = d > mid ? 255 : 0;
     }
   }
@@ -261,7 +265,17 @@ cv::Mat plate_silhouette(const cv::Mat& bgr, const PlateModel& plate,
   mask |= grown & keyed;
   trim_outline(mask, bgr, background, static_cast<float>(2 * kSureForeground) * sigma);
   if (shadow_like) *shadow_like = shade_only & (mask == 0);
+  if (off_plate) *off_plate = off & (mask == 0);
   return mask;
+}
+
+void trim_plate_outline(cv::Mat& mask, const cv::Mat& bgr, const PlateModel& plate) {
+  const cv::Vec3d g = background_gain(bgr, plate);
+  cv::Mat background;
+  cv::multiply(plate.mean, cv::Scalar(g[0], g[1], g[2]), background);
+  const float sigma =
+      static_cast<float>(plate.sigma * std::sqrt(1.0 + 1.0 / std::max(1, plate.plates)));
+  trim_outline(mask, bgr, background, static_cast<float>(2 * kSureForeground) * sigma);
 }
 
 }  // namespace fourd::segment

@@ -46,8 +46,16 @@ cv::Vec3d background_gain(const cv::Mat& bgr, const PlateModel& plate);
 // chroma key's; the outline decided by the matte alpha against the plate's own colour. With
 // `shadow_like`, also the background pixels that are so only by the shadow rule (clearly darker
 // than the plate, of its chromaticity): a shadow, or dark clothes over a neutral background,
-// which the other cameras can tell apart (ConsistencyCheck::recover).
+// which the other cameras can tell apart (ConsistencyCheck::recover). With `off_plate`, the
+// pixels left out that are off the plate's colour by more than the noise, a darker shade
+// included: where the performer may hide in its own colour (ConsistencyCheck::recover_hidden).
 cv::Mat plate_silhouette(const cv::Mat& bgr, const PlateModel& plate,
-                         const SegmentOptions& options, cv::Mat* shadow_like = nullptr);
+                         const SegmentOptions& options, cv::Mat* shadow_like = nullptr,
+                         cv::Mat* off_plate = nullptr);
+
+// The outline of a silhouette judged again by its matte alpha against the plate, as
+// plate_silhouette does (in place): after pixels were added to it (recover_hidden), the mixed
+// pixels of a contrasting outline go by their coverage again.
+void trim_plate_outline(cv::Mat& mask, const cv::Mat& bgr, const PlateModel& plate);
 
 }  // namespace fourd::segment

@@ -153,7 +153,8 @@ class SegmentRun {
   void learn_plates();
   void require_space() const;
   void segment_item(std::size_t i, log::Progress& progress);
-  cv::Mat silhouette(const std::string& take, std::size_t c, int frame, cv::Mat* doubtful) const;
+  cv::Mat silhouette(const std::string& take, std::size_t c, int frame, cv::Mat* image,
+                     cv::Mat* doubtful, cv::Mat* off_plate) const;
   Summary summarise() const;
   void add_summary(const Summary& summary);
 
@@ -303,17 +304,20 @@ void SegmentRun::segment_frames() {
                     [&](std::size_t i) { segment_item(i, progress); });
 }
 
-// Camera c's silhouette of a frame: read (--finish), the supplied mask, or segmented.
-cv::Mat SegmentRun::silhouette(const std::string& take, std::size_t c, int frame,
-                               cv::Mat* doubtful) const {
+// Camera c's silhouette of a frame: read (--finish), the supplied mask, or segmented (the
+// image it was segmented from in `image`; plate: the pixels for the cross-camera recoveries in
+// `doubtful` and `off_plate`).
+cv::Mat SegmentRun::silhouette(const std::string& take, std::size_t c, int frame, cv::Mat* image,
+                               cv::Mat* doubtful, cv::Mat* off_plate) const {
   if (args_.finish) return read_image(silhouette_path(take, c, frame), cv::IMREAD_GRAYSCALE);
   if (choice_.method == "masks") {
     return read_supplied_mask(mask_path(take, c, frame), cameras_[c].name,
                               cameras_[c].intrinsics.width, cameras_[c].intrinsics.height, frame);
   }
-  const cv::Mat image = read_capture_image(session_, cameras_[c], take, frame);
-  return choice_.method == "plate" ? plate_silhouette(image, plates_[c], options_, doubtful)
-                                   : key_silhouette(image, backdrops_[c], keys_[c], options_);
+  *image = read_capture_image(session_, cameras_[c], take, frame);
+  return choice_.method == "plate"
+             ? plate_silhouette(*image, plates_[c], options_, doubtful, off_plate)
+             : key_silhouette(*image, backdrops_[c], keys_[c], options_);
 }
 
 // One frame: every camera's silhouette, written, and its foreground fraction and consistency.
@@ -321,8 +325,10 @@ void SegmentRun::segment_item(std::size_t i, log::Progress& progress) {
   const std::size_t nc = cameras_.size();
   const Item& item = items_[i];
   const std::string& take = capture_.takes[item.take].name;
-  std::vector<cv::Mat> masks(nc), doubtful(nc);
-  for (std::size_t c = 0; c < nc; ++c) masks[c] = silhouette(take, c, item.frame, &doubtful[c]);
+  std::vector<cv::Mat> masks(nc), doubtful(nc), off_plate(nc), images(nc);
+  for (std::size_t c = 0; c < nc; ++c) {
+    masks[c] = silhouette(take, c, item.frame, &images[c], &doubtful[c], &off_plate[c]);
+  }
   // Plate with shadows anywhere: what one camera took for shadow, others may see as the
   // performer. Not with shadows only on the floor: there the coarse hull cannot tell the
   // shadow between the feet from the feet (room studio: segment.iou_mean 0.932 with, 0.950
@@ -330,6 +336,13 @@ void SegmentRun::segment_item(std::size_t i, log::Progress& progress) {
   if (!args_.finish && choice_.method == "plate" && !shadow_floor_) {
     consistency_->recover(masks, doubtful);
     for (cv::Mat& mask : masks) clean_up(mask, options_);
+  }
+  // Plate: the performer where one camera cannot tell it from the plate (camouflage, a shoe as
+  // dark as a shadow), from the others' silhouettes, pixel by pixel; the outline judged again.
+  // Plate studio recipe: segment.iou_mean 0.961 -> 0.966 (worst 0.926 -> 0.943).
+  if (!args_.finish && choice_.method == "plate") {
+    consistency_->recover_hidden(masks, off_plate, shadow_floor_);
+    for (std::size_t c = 0; c < nc; ++c) trim_plate_outline(masks[c], images[c], plates_[c]);
   }
   for (std::size_t c = 0; c < nc; ++c) {
     const cv::Mat& mask = masks[c];

@@ -135,16 +135,21 @@ cv::Mat room(std::mt19937& rng) {
   return bgr;
 }
 
-TEST(SegmentPlate, ToleratesAGainChangeAndAShadow) {
-  std::mt19937 rng(3);
-  cv::Mat empty = room(rng);
+// Three plates of the empty studio: `empty` with fresh noise each.
+std::vector<cv::Mat> noisy_plates(const cv::Mat& empty, std::mt19937& rng) {
   std::vector<cv::Mat> plates;
   for (int i = 0; i < 3; ++i) {
     cv::Mat p = empty.clone();
     add_noise(p, rng, 2.0);
     plates.push_back(p);
   }
-  const PlateModel model = learn_plate(plates, "cam00");
+  return plates;
+}
+
+TEST(SegmentPlate, ToleratesAGainChangeAndAShadow) {
+  std::mt19937 rng(3);
+  cv::Mat empty = room(rng);
+  const PlateModel model = learn_plate(noisy_plates(empty, rng), "cam00");
   EXPECT_NEAR(model.sigma, 2.0, 0.4);  // the noise that differs between the plates
   // The frame: 4% more light, the performer's shadow on the floor, the performer.
   cv::Mat frame;
@@ -171,13 +176,7 @@ TEST(SegmentPlate, ToleratesAGainChangeAndAShadow) {
 TEST(SegmentPlate, MixedOutlinePixelsGoByTheirCoverage) {
   std::mt19937 rng(5);
   cv::Mat empty(kH, kW, CV_8UC3, cv::Scalar(200, 205, 210));  // a light wall
-  std::vector<cv::Mat> plates;
-  for (int i = 0; i < 3; ++i) {
-    cv::Mat p = empty.clone();
-    add_noise(p, rng, 2.0);
-    plates.push_back(p);
-  }
-  const PlateModel model = learn_plate(plates, "cam00");
+  const PlateModel model = learn_plate(noisy_plates(empty, rng), "cam00");
   const cv::Point2d centre(kW / 2.0 + 0.3, kH / 2.0 - 0.2);
   const double radius = 0.35 * kH;
   const cv::Vec3f dark(140, 70, 40);  // denim blue (grey would pass for shadow)
@@ -242,6 +241,35 @@ TEST(SegmentPlate, ShadowsOnlyWhereTheFloorCanTakeThem) {
   const cv::Mat t = plate_silhouette(frame2, floor_only, SegmentOptions{});
   EXPECT_GT(cv::countNonZero(t(trousers)), trousers.area() / 2);
   EXPECT_LT(cv::countNonZero(t(shadow)), shadow.area() / 100) << "the floor's shadow is foreground";
+}
+
+// What one camera cannot tell from the plate: a dark shoe over the floor, of the floor's colour
+// and darker by a shadow's factor, is background by the shadow rule. plate_silhouette names it
+// among the pixels off the plate (for the other cameras to recover), and not the background
+// the frame shows unchanged.
+TEST(SegmentPlate, NamesThePixelsOffThePlateItLeftOut) {
+  std::mt19937 rng(9);
+  cv::Mat empty(kH, kW, CV_8UC3, cv::Scalar(150, 170, 190));  // a plain beige floor
+  add_noise(empty, rng, 2.0);
+  const PlateModel model = learn_plate(noisy_plates(empty, rng), "cam00");
+  cv::Mat frame = empty.clone();
+  frame(kPerformer).setTo(cv::Scalar(60, 60, 180));
+  const cv::Rect shoe(40, 100, 20, 10);
+  cv::Mat darker;
+  frame(shoe).convertTo(darker, CV_8UC3, 0.5);
+  darker.copyTo(frame(shoe));
+  add_noise(frame, rng, 2.0);
+  cv::Mat shadow_like, off_plate;
+  const cv::Mat mask = plate_silhouette(frame, model, SegmentOptions{}, &shadow_like, &off_plate);
+  ASSERT_LT(cv::countNonZero(mask(shoe)), shoe.area() / 10) << "the shoe is not lost here";
+  EXPECT_GT(cv::countNonZero(off_plate(shoe)), shoe.area() * 95 / 100);
+  cv::Mat plain = cv::Mat(kH, kW, CV_8U, cv::Scalar(255));
+  plain(shoe).setTo(0);
+  cv::Mat grown;
+  cv::dilate(performer_mask(), grown, cv::Mat(), {-1, -1}, 3);
+  plain.setTo(0, grown);
+  EXPECT_LT(cv::countNonZero(off_plate & plain), cv::countNonZero(plain) / 50);
+  EXPECT_EQ(cv::countNonZero(off_plate & mask), 0);
 }
 
 // The floor region of a camera of the ring: the floor under the rig's centre is in it, the wall
@@ -346,6 +374,18 @@ class SegmentStage : public ::testing::Test {
       }
     }
   }
+  // Every camera's silhouette of the cylinder, and an empty mask per camera beside them.
+  void cylinders(std::vector<cv::Mat>& silhouettes, std::vector<cv::Mat>& empty) const {
+    for (const Camera& cam : cameras_) {
+      silhouettes.push_back(cylinder_silhouette(cam));
+      empty.push_back(cv::Mat::zeros(kH, kW, CV_8U));
+    }
+  }
+  static cv::Mat lower_half() {
+    cv::Mat lower = cv::Mat::zeros(kH, kW, CV_8U);
+    lower(cv::Rect(0, kH / 2, kW, kH / 2)).setTo(255);
+    return lower;
+  }
   fs::path mask(const std::string& camera, int frame) const {
     return root_ / "masks" / "walk" / camera / (frame_name(frame) + ".png");
   }
@@ -374,14 +414,10 @@ TEST_F(SegmentStage, ConsistentSilhouettesAreExplainedByTheOtherCameras) {
 TEST_F(SegmentStage, OtherCamerasRecoverWhatOneTookForShadow) {
   ConsistencyCheck check(cameras_);
   std::vector<cv::Mat> silhouettes, doubtful;
-  for (const Camera& cam : cameras_) {
-    silhouettes.push_back(cylinder_silhouette(cam));
-    doubtful.push_back(cv::Mat::zeros(kH, kW, CV_8U));
-  }
+  cylinders(silhouettes, doubtful);
   const cv::Mat truth = silhouettes[1].clone();
   // Camera 1 took the lower half of the performer for a shadow; and a shadow only it doubts.
-  cv::Mat lower = cv::Mat::zeros(kH, kW, CV_8U);
-  lower(cv::Rect(0, kH / 2, kW, kH / 2)).setTo(255);
+  const cv::Mat lower = lower_half();
   doubtful[1] = truth & lower;
   silhouettes[1].setTo(0, lower);
   cv::rectangle(doubtful[1], cv::Rect(2, kH - 12, 30, 10), 255, cv::FILLED);
@@ -389,6 +425,40 @@ TEST_F(SegmentStage, OtherCamerasRecoverWhatOneTookForShadow) {
   check.recover(silhouettes, doubtful);
   EXPECT_GT(iou(silhouettes[1], truth), 0.97);
   EXPECT_EQ(cv::countNonZero(silhouettes[1](cv::Rect(2, kH - 12, 30, 10))), 0);
+}
+
+// Camouflage: camera 1 lost the performer's lower half where it matches the plate (off the
+// plate's colour only by a little, so not surely background). The other cameras, pixel by pixel,
+// give it back; not the background beside the performer, nor off-plate pixels no other camera
+// sees the performer at.
+TEST_F(SegmentStage, OtherCamerasRecoverACamouflagedPatch) {
+  ConsistencyCheck check(cameras_);
+  ASSERT_TRUE(check.usable());
+  std::vector<cv::Mat> silhouettes, candidates;
+  cylinders(silhouettes, candidates);
+  const cv::Mat truth = silhouettes[1].clone();
+  const cv::Mat lower = lower_half();
+  silhouettes[1].setTo(0, lower);
+  ASSERT_LT(iou(silhouettes[1], truth), 0.8);
+  // Candidates: the lost half, a ring of background 2 to 4 px beside the performer, and a
+  // patch of background away from it.
+  cv::Mat near, beside;
+  cv::dilate(truth, near, cv::getStructuringElement(cv::MORPH_ELLIPSE, {9, 9}));
+  cv::dilate(truth, beside, cv::getStructuringElement(cv::MORPH_ELLIPSE, {3, 3}));
+  const cv::Mat ring = near & ~beside;
+  const cv::Rect away(2, kH - 14, 30, 10);
+  candidates[1] = (truth & lower) | ring;
+  candidates[1](away).setTo(255);
+  check.recover_hidden(silhouettes, candidates, true);
+  EXPECT_GT(iou(silhouettes[1], truth), 0.95);
+  EXPECT_LT(cv::countNonZero(silhouettes[1] & ring), cv::countNonZero(ring) / 10)
+      << "the background beside the performer taken";
+  EXPECT_EQ(cv::countNonZero(silhouettes[1](away)), 0);
+  // The other cameras are left as they were.
+  for (std::size_t c = 0; c < cameras_.size(); ++c) {
+    if (c == 1) continue;
+    EXPECT_EQ(cv::countNonZero(silhouettes[c] != cylinder_silhouette(cameras_[c])), 0) << c;
+  }
 }
 
 TEST_F(SegmentStage, WarnsAboutAnEmptyAndAnInconsistentMaskNamingCameraAndFrame) {
