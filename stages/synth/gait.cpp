@@ -47,7 +47,10 @@ Gait make_gait(const Rig& rig, const MotionSpec& spec, double fps, int* cycle_fr
   // longer legs.
   const double frequency = running ? 1.35 * std::pow(std::max(v, 1.0) / 3.0, 0.3) / std::sqrt(k)
                                    : 0.92 * std::sqrt(std::max(v, 0.3) / 1.3) / std::sqrt(k);
-  *cycle_frames = std::max(8, static_cast<int>(std::lround(fps / frequency)));
+  // A whole number of frames per cycle, and at least 4 (fewer cannot show a stride); the
+  // stride is the speed times that cycle, so the clamp must not bind at a walk's cadence even
+  // at 6 fps (at 8 frames, a 1.7 m/s walk took a 2.3 m stride there).
+  *cycle_frames = std::max(4, static_cast<int>(std::lround(fps / frequency)));
   g.cycle = *cycle_frames / fps;
   const double stride = v * g.cycle;
   if (running) {

@@ -161,6 +161,20 @@ TEST(Motion, WalkSpeedIsExactAndStrideAndCadenceGrowWithSpeed) {
   }
 }
 
+// At a low frame rate the cadence is still a person's: a whole number of frames per cycle as
+// close to it as the rate allows, so a fast walk at 6 fps keeps a human stride (the old
+// 8-frame minimum gave a 1.7 m/s walk a 2.3 m stride there).
+TEST(Motion, AFastWalkAtSixFramesPerSecondKeepsAHumanStride) {
+  for (double speed : {0.9, 1.7}) {
+    const MotionClip clip = generate_motion(performer().skeleton, walk(speed), 6.0);
+    const MotionClip fine = generate_motion(performer().skeleton, walk(speed), 60.0);
+    EXPECT_GE(clip.cycle_frames, 4);
+    // Within half a frame of the cadence sampled finely.
+    EXPECT_NEAR(clip.cycle_frames / 6.0, fine.cycle_frames / 60.0, 0.5 / 6.0) << speed;
+    EXPECT_LT(speed * clip.cycle_frames / 6.0, 2.0) << speed;  // the stride [m]
+  }
+}
+
 TEST(Motion, WalkKeepsFeetPlantedAndAboveTheFloor) {
   const MotionClip clip = generate_motion(performer().skeleton, walk(1.3), kFps);
   const auto meshes = skin_all(clip);
