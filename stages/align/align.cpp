@@ -1118,9 +1118,10 @@ void retry_wrong_frames(const Plan& plan, Registrations& reg, TreeRegistration& 
   if (!wrong.empty()) log::info("self-diagnosis: {} frames wrong on their surface, registering them again", wrong.size());
   for (const auto& [before, k] : wrong) {
     const FrameStatus& s = status(k);
+    const int old_parent = reg.parent_of[k];  // clang captures no structured binding
     const std::vector<int> candidates =
         retry_parents(plan, reg, k, options.reparent_attempts, [&](int p) {
-          return reg.parent_of[k] != p && diagnoses[p].verdicts.empty();
+          return old_parent != p && diagnoses[p].verdicts.empty();
         });
     diagnoses.mark_retried(k);
     std::vector<std::pair<int, Fit>> fits = registration.passing_fits(k, candidates);
