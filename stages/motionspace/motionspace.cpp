@@ -19,7 +19,6 @@ namespace fourd::motionspace {
 
 namespace {
 
-
 nlohmann::json class_summary(const MotionSpace& space, const MotionSpaceReport& r,
                              const MotionspaceOptions& options, double seconds) {
   const ParameterMap& map = space.parameter_map;

@@ -201,6 +201,15 @@ cv::Vec3d background_gain(const cv::Mat& bgr, const PlateModel& plate) {
   return gain;
 }
 
+namespace {
+
+// The noise of a frame's difference from the plates' mean: the noise of both.
+float frame_noise(const PlateModel& plate) {
+  return static_cast<float>(plate.sigma * std::sqrt(1.0 + 1.0 / std::max(1, plate.plates)));
+}
+
+}  // namespace
+
 cv::Mat plate_silhouette(const cv::Mat& bgr, const PlateModel& plate,
                          const SegmentOptions& options, cv::Mat* shadow_like, cv::Mat* off_plate) {
   if (bgr.size() != plate.mean.size()) {
@@ -209,9 +218,7 @@ cv::Mat plate_silhouette(const cv::Mat& bgr, const PlateModel& plate,
   }
   const cv::Vec3d g = background_gain(bgr, plate);
   const cv::Vec3f gain(static_cast<float>(g[0]), static_cast<float>(g[1]), static_cast<float>(g[2]));
-  // The difference of a frame and the plates' mean: the noise of both.
-  const float sigma =
-      static_cast<float>(plate.sigma * std::sqrt(1.0 + 1.0 / std::max(1, plate.plates)));
+  const float sigma = frame_noise(plate);
   cv::Mat background(bgr.size(), CV_32FC3);
   cv::Mat sure_fg(bgr.size(), CV_8U), sure_bg(bgr.size(), CV_8U), midpoint(bgr.size(), CV_8U);
   const float mid = static_cast<float>(0.5 * (kSureBackground + kSureForeground));
@@ -273,8 +280,7 @@ void trim_plate_outline(cv::Mat& mask, const cv::Mat& bgr, const PlateModel& pla
   const cv::Vec3d g = background_gain(bgr, plate);
   cv::Mat background;
   cv::multiply(plate.mean, cv::Scalar(g[0], g[1], g[2]), background);
-  const float sigma =
-      static_cast<float>(plate.sigma * std::sqrt(1.0 + 1.0 / std::max(1, plate.plates)));
+  const float sigma = frame_noise(plate);
   trim_outline(mask, bgr, background, static_cast<float>(2 * kSureForeground) * sigma);
 }
 
