@@ -223,12 +223,13 @@ void save_asset(const std::filesystem::path& path, const Asset& asset) {
   for (const GraphSpace& s : g.spaces) write_space(w, s);
   w.write<std::uint64_t>(g.edges.size());
   for (const GraphEdge& e : g.edges) write_edge(w, e);
+  for (const GraphSpace& s : g.spaces) w.write<std::int32_t>(s.default_successor);
   write_textures(w, g.textures);
   w.save(path, kAssetMagic, kAssetVersion);
 }
 
 Asset load_asset(const std::filesystem::path& path) {
-  BinaryReader r = BinaryReader::open(path, kAssetMagic, {2, 3, kAssetVersion});
+  BinaryReader r = BinaryReader::open(path, kAssetMagic, {2, 3, 4, kAssetVersion});
   Asset asset;
   MotionGraph& g = asset.graph;
   g.name = r.read_string();
@@ -251,6 +252,11 @@ Asset load_asset(const std::filesystem::path& path) {
     throw InputError(fmt::format("{}: {} edges announced", path.string(), edges));
   }
   for (std::uint64_t k = 0; k < edges; ++k) g.edges.push_back(read_edge(r));
+  if (r.version() >= kAssetVersionSuccessors) {
+    for (GraphSpace& s : g.spaces) s.default_successor = r.read<std::int32_t>();
+  } else {
+    choose_default_successors(&g);
+  }
   if (r.version() >= 3) {
     g.textures = read_textures(r, g.spaces.size());
     // Image offsets from the spaces' input counts (the file stores only the key counts).

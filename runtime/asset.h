@@ -15,6 +15,8 @@
 //     every reference's frames and normals in float, converted to displacements at load;
 //   uint64 #edges, per edge: from, to, self-loop, similarity sizes, d_max, values, precomputed
 //     transitions;
+//   (version 5) per space, int32 default successor (GraphSpace::default_successor; before, the
+//     loader applies choose_default_successor's rule);
 //   (version 3) uint8 has textures; if 1: int32 width, height, JPEG quality; corner UVs
 //     (#F x 3 Vec2f); uint64 #spaces, per space: int32 keys; then uint64 #images, each the bytes
 //     of a JPEG file (runtime/textures.h). Version 2 files load without textures.
@@ -26,9 +28,11 @@
 namespace fourd {
 
 // 2: per-cell arc angles of the hybrid blend; 3: textures (atlas UVs, key textures per space);
-// 4: references as fp16 displacements (positions and normals). Versions 2 and 3 still load.
-inline constexpr std::uint32_t kAssetVersion = 4;
+// 4: references as fp16 displacements (positions and normals); 5: every space's default
+// successor. Versions 2 to 4 still load.
+inline constexpr std::uint32_t kAssetVersion = 5;
 inline constexpr std::uint32_t kAssetVersionDisplacements = 4;
+inline constexpr std::uint32_t kAssetVersionSuccessors = 5;
 
 struct Asset {
   MotionGraph graph;

@@ -106,14 +106,27 @@ int MotionGraph::find_edge(int from, int to) const {
 }
 
 int MotionGraph::default_successor(int space) const {
-  if (space < 0 || space >= static_cast<int>(spaces.size()) || spaces[space].cyclic()) return -1;
+  if (space < 0 || space >= static_cast<int>(spaces.size())) return -1;
+  return spaces[space].default_successor;
+}
+
+int choose_default_successor(const MotionGraph& graph, int space) {
+  if (space < 0 || space >= static_cast<int>(graph.spaces.size()) || graph.spaces[space].cyclic()) {
+    return -1;
+  }
   int any = -1;
-  for (const GraphEdge& e : edges) {
+  for (const GraphEdge& e : graph.edges) {
     if (e.from != space || e.to == space) continue;
-    if (spaces[e.to].cyclic()) return e.to;
+    if (graph.spaces[e.to].cyclic()) return e.to;
     if (any < 0) any = e.to;
   }
   return any;
+}
+
+void choose_default_successors(MotionGraph* graph) {
+  for (int k = 0; k < static_cast<int>(graph->spaces.size()); ++k) {
+    graph->spaces[k].default_successor = choose_default_successor(*graph, k);
+  }
 }
 
 void MotionGraph::check() const {
@@ -180,6 +193,20 @@ void MotionGraph::check() const {
             std::isfinite(p.source_p) && std::isfinite(p.target_p) && p.distance >= 0)) {
         throw InputError(label + ": a precomputed transition is out of range");
       }
+    }
+  }
+  // A default successor is reached by a transition: an edge to another space, from a one-shot
+  // space (a cyclic one loops).
+  for (const GraphSpace& s : spaces) {
+    const int next = s.default_successor;
+    if (next == -1) continue;
+    const int k = static_cast<int>(&s - spaces.data());
+    if (s.cyclic() || next == k || find_edge(k, next) < 0) {
+      throw InputError(fmt::format(
+          "motion graph '{}': space '{}' names {} as its default successor, but {}", name,
+          s.name(), next,
+          s.cyclic() ? "it is cyclic (it loops)"
+                     : "it has no transition to that space"));
     }
   }
 }

@@ -37,6 +37,11 @@ struct GraphSpace {
   AlignedHalfs normal_displacements;  // (#R - N) x F x planes, like motion.blend.displacements
   // Empty, or normal_displacements decoded to float, like motion.blend.displacement_floats.
   AlignedFloats normal_displacement_floats;
+  // Where this space goes on when it ends with nothing requested (a one-shot space): the index
+  // of another space it has an edge to, or -1 (a cyclic space loops; a one-shot space with -1
+  // holds its last pose). The graph stage chooses it (choose_default_successor) and the asset
+  // stores it (version 5); older assets get the same rule at load.
+  int default_successor = -1;
 
   const std::string& name() const { return motion.name; }
   bool cyclic() const { return motion.cyclic; }
@@ -141,14 +146,19 @@ struct MotionGraph {
   // -1 when absent.
   int find_space(const std::string& name) const;
   int find_edge(int from, int to) const;
-  // Where a one-shot space goes on when it ends with no request: the target of its first
-  // edge (in the order session.yaml lists the transitions) into a cyclic space, else of its
-  // first edge to another space; -1 for a cyclic space or one with no way out (it holds its
-  // last pose).
+  // The space's stored default successor (GraphSpace::default_successor); -1 for an index
+  // out of range.
   int default_successor(int space) const;
   // Every space's topology, edge indices and matrix sizes; throws InputError naming what is wrong.
   void check() const;
 };
+
+// The graph's rule for a default successor: the target of the space's first edge (in the order
+// session.yaml lists the transitions) into a cyclic space, else of its first edge to another
+// space; -1 for a cyclic space or one with no way out (it holds its last pose).
+int choose_default_successor(const MotionGraph& graph, int space);
+// Sets every space's default_successor by that rule.
+void choose_default_successors(MotionGraph* graph);
 
 // Shortest route (fewest edges) from space `from` to `to` as the list of spaces after `from`,
 // ending with `to`; empty if there is none or from == to. Allocates (called per request).

@@ -93,6 +93,7 @@ MotionGraph build_motion_graph(const std::string& name, double fps, std::vector<
       if (g.spaces[s].cyclic()) add_edge(s, s);
     }
   }
+  choose_default_successors(&g);
   g.check();
   return g;
 }
@@ -217,8 +218,8 @@ void add_key_textures(const Session& session, const StageArgs& args, const Graph
   }
 }
 
-// Where each one-shot space goes when it ends with no request (the runtime's rule,
-// MotionGraph::default_successor, over the asset's edges), logged.
+// Where each one-shot space goes when it ends with no request (stored in the asset:
+// GraphSpace::default_successor, chosen by choose_default_successor), logged.
 nlohmann::json default_successors(const MotionGraph& graph) {
   nlohmann::json successors = nlohmann::json::object();
   for (int k = 0; k < static_cast<int>(graph.spaces.size()); ++k) {

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cstring>
 #include <fstream>
+#include <utility>
 
 #include "pipeline/core/error.h"
 #include "pipeline/core/files.h"
@@ -59,6 +60,44 @@ TEST_F(AssetTest, RoundTripKeepsEverything) {
     EXPECT_EQ(a.graph.edges[k].precomputed.size(), b.graph.edges[k].precomputed.size());
     EXPECT_EQ(a.graph.edges[k].self_loop, b.graph.edges[k].self_loop);
   }
+}
+
+// The default successor is the asset's statement, not recomputed at load: a one-shot space set
+// to hold its last pose (-1) stays so, though the graph's rule would send it on.
+TEST_F(AssetTest, KeepsTheDefaultSuccessorItStores) {
+  Asset a;
+  a.graph = test::make_test_graph();
+  const int jump = a.graph.find_space("jump_length"), loco = a.graph.find_space("locomotion");
+  ASSERT_EQ(a.graph.default_successor(jump), loco);  // the rule's choice, set by the graph build
+  EXPECT_EQ(choose_default_successor(a.graph, jump), loco);
+  save_asset(file_, a);
+  EXPECT_EQ(load_asset(file_).graph.default_successor(jump), loco);
+  a.graph.spaces[jump].default_successor = -1;
+  save_asset(file_, a);
+  const Asset b = load_asset(file_);
+  EXPECT_EQ(b.graph.default_successor(jump), -1);
+  EXPECT_EQ(b.graph.default_successor(loco), -1);  // cyclic: it loops
+}
+
+// A successor the character could not reach by a transition is refused when the asset is
+// written, naming the space.
+TEST_F(AssetTest, RefusesADefaultSuccessorWithNoTransition) {
+  Asset a;
+  a.graph = test::make_test_graph();
+  const int jump = a.graph.find_space("jump_length"), loco = a.graph.find_space("locomotion");
+  for (const auto& [space, next] : {std::pair{loco, jump}, std::pair{jump, jump},
+                                    std::pair{jump, 7}}) {
+    Asset bad = a;
+    bad.graph.spaces[space].default_successor = next;
+    try {
+      save_asset(file_, bad);
+      ADD_FAILURE() << "saved successor " << next << " of space " << space;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(bad.graph.spaces[space].name()), std::string::npos)
+          << e.what();
+    }
+  }
+  EXPECT_FALSE(fs::exists(file_));
 }
 
 TEST_F(AssetTest, RefusesUnknownVersion) {

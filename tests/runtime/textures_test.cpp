@@ -210,6 +210,25 @@ TEST_F(TexturedAssetTest, VersionTwoAssetLoadsWithoutTextures) {
   EXPECT_TRUE(any_reference);
 }
 
+// A version 4 asset (before the default successors were stored) loads with the successors the
+// graph's rule gives, which are those today's writer stores for the same graph.
+TEST_F(TexturedAssetTest, VersionFourAssetGetsTheRulesDefaultSuccessors) {
+  const fs::path fuzz = fs::path(FOURD_SOURCE_DIR) / "tests/fuzz";
+  const Asset b = load_asset(fuzz / "legacy/asset/tube_graph_no_turns_v4.fourd");
+  const Asset today = load_asset(fuzz / "corpus/asset/tube_graph_no_turns.fourd");
+  ASSERT_EQ(b.graph.spaces.size(), today.graph.spaces.size());
+  bool any_one_shot = false;
+  for (int k = 0; k < static_cast<int>(b.graph.spaces.size()); ++k) {
+    any_one_shot |= !b.graph.spaces[k].cyclic();
+    EXPECT_EQ(b.graph.default_successor(k), choose_default_successor(b.graph, k));
+    EXPECT_EQ(b.graph.default_successor(k), today.graph.default_successor(k));
+    if (!b.graph.spaces[k].cyclic()) {
+      EXPECT_GE(b.graph.default_successor(k), 0);
+    }
+  }
+  EXPECT_TRUE(any_one_shot);
+}
+
 TEST_F(TexturedAssetTest, CorruptTexturePayloadIsRefusedNamingTheTexture) {
   Asset a;
   a.graph = textured_graph();
