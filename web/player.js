@@ -337,12 +337,29 @@
   }
 
   // ---- loading
+  // A web package (fourd-export --web) is gzip: the browser's own DecompressionStream inflates
+  // it, so the module needs no zlib; a plain asset passes as it is.
+  async function inflate(bytes) {
+    if (bytes.length < 2 || bytes[0] !== 0x1f || bytes[1] !== 0x8b) return bytes;
+    const stream = new Blob([bytes]).stream().pipeThrough(new DecompressionStream('gzip'));
+    return new Uint8Array(await new Response(stream).arrayBuffer());
+  }
+
   async function loadBytes(bytes, name) {
+    const started = performance.now();
+    try {
+      bytes = await inflate(bytes);
+    } catch (e) {
+      throw new Error(`${name}: not a readable gzip file (${e.message})`);
+    }
+    const inflateMs = performance.now() - started;
     M.FS.writeFile('/asset.fourd', bytes);
     const error = M.load('/asset.fourd');
     M.FS.unlink('/asset.fourd');
     if (error) throw new Error(`${name}: ${error}`);
     info = JSON.parse(M.info());
+    info.inflate_ms = inflateMs;
+    info.load_ms = performance.now() - started;
     const vertices = setMesh(M.triangles().slice(), M.cornerUvs().slice(), info.vertices, info.plane_stride);
     await uploadKeys(info.textures.count, info.textures.width, info.textures.height);
     const loco = info.spaces.find((s) => s.name === 'locomotion');

@@ -7,7 +7,10 @@
 # camera 0 (the blended key textures, unlit) matches fourd-play's render of that frame (PSNR over
 # the character's pixels >= 30 dB); live play at 1280x720 is measured (frames per second) and
 # the runtime step benchmark in the browser is compared with the same benchmark natively
-# (web_step_bench). Skipped (exit 77) without emcc, node, chromium or puppeteer-core.
+# (web_step_bench). The asset's web package (fourd-export --web: quantised geometry in gzip,
+# which the page inflates with DecompressionStream) plays the same script in the page within
+# 0.1 mm of fourd-play's meshes of the original asset, and renders frame 20 as well.
+# Skipped (exit 77) without emcc, node, chromium or puppeteer-core.
 # usage: web_player.sh <tiny session> <work dir>   (FOURD_BIN: folder of the executables)
 set -euo pipefail
 command -v node >/dev/null || { echo "SKIP: node is not installed"; exit 77; }
@@ -44,15 +47,35 @@ echo "== positions: the page's script run against fourd-play's meshes"
 echo "== the page's render against fourd-play's"
 "$bin/client_check" image "$work/render/frame_$frame5.png" "$work/web.png" 30 "$work/web_diff.png"
 
+echo "== the web package: the same script in the page against fourd-play on the original asset"
+"$bin/fourd-export" "$asset" --web "$work/asset.web.fourd"
+set +e
+node "$here/web/check.js" "$web" "$work/asset.web.fourd" "$controls" "$work/camera.json" "$frame" 5 \
+  2 "$work/web_package.json" "$work/web_package.png"
+status=$?
+set -e
+[ "$status" -eq 0 ] || exit "$status"
+"$bin/client_check" frames "$work/play/meshes" "$work/web_package.json" 0.1
+"$bin/client_check" image "$work/render/frame_$frame5.png" "$work/web_package.png" 30 \
+  "$work/web_package_diff.png"
+
 echo "== frame rate and step time"
 "$bin/web_step_bench" "$asset" 10000 > "$work/native_bench.json"
-python3 - "$work/web.json" "$work/native_bench.json" "$work/play/summary.json" <<'PY'
-import json, sys
+python3 - "$work/web.json" "$work/native_bench.json" "$work/play/summary.json" \
+  "$work/web_package.json" "$asset" "$work/asset.web.fourd" <<'PY'
+import json, os, sys
 web = json.load(open(sys.argv[1]))
 native = json.load(open(sys.argv[2]))
 play = json.load(open(sys.argv[3]))
-assert web["summary"]["frames"] == play["frames"], (web["summary"], play["frames"])
-assert web["summary"]["transitions"] == play["transitions"], (web["summary"], play["transitions"])
+package = json.load(open(sys.argv[4]))
+for run in (web, package):
+    assert run["summary"]["frames"] == play["frames"], (run["summary"], play["frames"])
+    assert run["summary"]["transitions"] == play["transitions"], (run["summary"], play["transitions"])
+asset_mb, package_mb = os.path.getsize(sys.argv[5]) / 1e6, os.path.getsize(sys.argv[6]) / 1e6
+print(f"web package: {package_mb:.2f} MB to download instead of {asset_mb:.2f} MB; inflated and "
+      f"loaded in {package['info']['load_ms'] / 1e3:.2f} s ({package['info']['inflate_ms']:.0f} ms "
+      f"to inflate)")
+assert package_mb < asset_mb, "the web package is not smaller than the asset"
 fps, bench = web["fps"], web["benchmark"]
 ratio = bench["mean_us"] / native["mean_us"]
 print(f"{web['summary']['frames']} frames played, {web['summary']['transitions']} transitions, as "
