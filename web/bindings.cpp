@@ -91,8 +91,10 @@ std::string run_script(const std::string& text, int record_every, int show_frame
 }
 std::string benchmark(int steps, double dt) {
   const fourd::web::StepBenchmark b = fourd::web::benchmark_steps(player->asset(), steps, dt);
-  return nlohmann::json{{"steps", b.steps}, {"vertices", b.vertices}, {"mean_us", b.mean_us},
-                        {"total_ms", b.total_ms}}.dump();
+  return nlohmann::json{{"steps", b.steps},         {"rounds", b.rounds},
+                        {"vertices", b.vertices},   {"mean_us", b.mean_us},
+                        {"median_us", b.median_us}, {"total_ms", b.total_ms}}
+      .dump();
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <numbers>
+#include <vector>
 
 #include "runtime/character.h"
 #include "runtime/controller.h"
@@ -38,16 +39,22 @@ double timed_steps(const Asset& asset, int steps, double dt) {
 
 }  // namespace
 
-StepBenchmark benchmark_steps(const Asset& asset, int steps, double dt) {
+StepBenchmark benchmark_steps(const Asset& asset, int steps, double dt, int rounds) {
   // A first, untimed run: a browser compiles WebAssembly with a baseline compiler first and
   // optimises the functions that turn out hot while they run (the first run there is about 4x
   // slower); natively it warms the caches.
   timed_steps(asset, steps, dt);
   StepBenchmark b;
   b.steps = steps;
+  b.rounds = std::max(1, rounds);
   b.vertices = asset.graph.spaces.front().motion.blend.num_vertices;
-  b.total_ms = timed_steps(asset, steps, dt);
-  b.mean_us = steps > 0 ? 1e3 * b.total_ms / steps : 0;
+  std::vector<double> ms(b.rounds);
+  for (double& m : ms) m = timed_steps(asset, steps, dt);
+  for (double m : ms) b.total_ms += m;
+  std::sort(ms.begin(), ms.end());
+  const double per_step = steps > 0 ? 1e3 / steps : 0;
+  b.mean_us = ms.front() * per_step;
+  b.median_us = ms[ms.size() / 2] * per_step;
   return b;
 }
 

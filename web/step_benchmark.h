@@ -6,15 +6,20 @@
 
 namespace fourd::web {
 
-// Mean wall-clock time of one Character::step at a fixed motion-time step, walking under the
+// Wall-clock time of one Character::step at a fixed motion-time step, walking under the
 // controller at the locomotion space's middle speed with a heading change every second (so
-// transitions and searches are part of it), after an untimed run of the same steps.
+// transitions and searches are part of it), after an untimed run of the same steps. The steps
+// are timed in `rounds` runs from the same start: mean_us is the mean step of the fastest run,
+// the one least disturbed by other processes on a shared machine (the same code, so the same
+// rule, on both sides of the browser/native comparison), median_us that of the median run.
 struct StepBenchmark {
-  int steps = 0;
+  int steps = 0;  // per run
+  int rounds = 0;
   int vertices = 0;
   double mean_us = 0;
-  double total_ms = 0;
+  double median_us = 0;
+  double total_ms = 0;  // all timed runs
 };
-StepBenchmark benchmark_steps(const Asset& asset, int steps, double dt);
+StepBenchmark benchmark_steps(const Asset& asset, int steps, double dt, int rounds = 5);
 
 }  // namespace fourd::web

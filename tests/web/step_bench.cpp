@@ -1,6 +1,7 @@
 // The web player's runtime step benchmark (web/step_benchmark.h), native: the reference the
 // browser's step time is compared with (tests/e2e/web_player.sh).
-// usage: web_step_bench ASSET [STEPS] [DT]   prints {"steps", "vertices", "mean_us", "total_ms"}
+// usage: web_step_bench ASSET [STEPS] [DT]
+// prints {"steps", "rounds", "vertices", "mean_us", "median_us", "total_ms"} (web/step_benchmark.h)
 #include <fmt/format.h>
 
 #include <exception>
@@ -20,8 +21,10 @@ int main(int argc, char** argv) {
     const int steps = argc > 2 ? std::stoi(argv[2]) : 3000;
     const double dt = argc > 3 ? std::stod(argv[3]) : 1.0 / 60;
     const fourd::web::StepBenchmark b = fourd::web::benchmark_steps(asset, steps, dt);
-    fmt::print("{{\"steps\": {}, \"vertices\": {}, \"mean_us\": {:.3f}, \"total_ms\": {:.3f}}}\n",
-               b.steps, b.vertices, b.mean_us, b.total_ms);
+    fmt::print(
+        "{{\"steps\": {}, \"rounds\": {}, \"vertices\": {}, \"mean_us\": {:.3f}, "
+        "\"median_us\": {:.3f}, \"total_ms\": {:.3f}}}\n",
+        b.steps, b.rounds, b.vertices, b.mean_us, b.median_us, b.total_ms);
   } catch (const std::exception& e) {
     fmt::print(stderr, "web_step_bench: {}\n", e.what());
     return fourd::kExitFailure;
