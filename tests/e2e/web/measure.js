@@ -4,9 +4,10 @@
 // the runtime step benchmark (window.fourd.benchmark). Prints one JSON object: the asset's info,
 // its download size and load time, fps and benchmark. With --profile OUT.cpuprofile it also
 // records the benchmark with Chromium's sampling profiler (open in Chromium's DevTools; function
-// names need a module linked with --profiling-funcs).
+// names need a module linked with --profiling-funcs). With --screenshot OUT.png it first saves
+// the page as a user sees it after 3 s of play (docs/web.png is one, on the default sample).
 // usage: node measure.js WEB_DIR ASSET [--fps SECONDS] [--size WxH] [--steps N]
-//        [--profile OUT.cpuprofile]
+//        [--profile OUT.cpuprofile] [--screenshot OUT.png]
 // Exits 1 on a failure, 77 when chromium or puppeteer-core is missing.
 'use strict';
 const fs = require('fs');
@@ -20,15 +21,21 @@ function option(name, fallback) {
 const [webDir, asset] = args;
 if (!asset || !fs.existsSync(asset)) {
   console.error('usage: node measure.js WEB_DIR ASSET [--fps SECONDS] [--size WxH] [--steps N] ' +
-                '[--profile OUT.cpuprofile]' + (asset ? `\nmeasure.js: ${asset}: no such file` : ''));
+                '[--profile OUT.cpuprofile] [--screenshot OUT.png]' +
+                (asset ? `\nmeasure.js: ${asset}: no such file` : ''));
   process.exit(2);
 }
 const fpsSeconds = Number(option('--fps', '5'));
 const [width, height] = option('--size', '1280x720').split('x').map(Number);
 const steps = Number(option('--steps', '10000'));
 const profile = option('--profile', null);
+const screenshot = option('--screenshot', null);
 runWebPlayer('measure.js', webDir, asset, { width, height, echo: false, timeout: 300000 },
              async ({ browser, page, errors, loadSeconds, info }) => {
+  if (screenshot) {
+    await new Promise((resolve) => setTimeout(resolve, 3000));
+    await page.screenshot({ path: screenshot });
+  }
   const fps = fpsSeconds > 0
     ? await page.evaluate((o) => window.fourd.measureFps(o.s, o.w, o.h),
                           { s: fpsSeconds, w: width, h: height })
