@@ -11,7 +11,8 @@
 //                                              {summary, frames: [...], positions: Float32Array}
 //   render({camera, unlit, width, height})     draw the shown frame once, returns a PNG data URL
 //   measureFps(seconds, width, height)         live play at that size: {fps, frame_ms, ...}
-//   benchmark(steps, dt)                       the runtime step benchmark (web/web_player.h)
+//   benchmark(steps, dt, evictMb)              the runtime step benchmark (web/step_benchmark.h;
+//                                              evictMb: cold caches before every step)
 //   state()                                    what the HUD shows
 'use strict';
 (() => {
@@ -659,7 +660,7 @@
       return { frames, seconds: elapsed, fps: frames / elapsed, frame_work_ms: mean(work),
                step_ms: mean(steps), width, height, state: JSON.parse(M.state()) };
     },
-    benchmark: (steps = 2000, dt = 1 / 60) => JSON.parse(M.benchmark(steps, dt)),
+    benchmark: (steps = 2000, dt = 1 / 60, evictMb = 0) => JSON.parse(M.benchmark(steps, dt, evictMb)),
   };
   window.fourd = api;
   api.ready = createFourdModule().then(async (module) => {

@@ -6,7 +6,9 @@
 // records the benchmark with Chromium's sampling profiler (open in Chromium's DevTools; function
 // names need a module linked with --profiling-funcs). With --screenshot OUT.png it first saves
 // the page as a user sees it after 3 s of play (docs/web.png is one, on the default sample).
-// usage: node measure.js WEB_DIR ASSET [--fps SECONDS] [--size WxH] [--steps N]
+// With --evict MB the benchmark writes that many megabytes between two steps (untimed), so
+// that every step starts with cold caches as in live play (web_step_bench's EVICT_MB).
+// usage: node measure.js WEB_DIR ASSET [--fps SECONDS] [--size WxH] [--steps N] [--evict MB]
 //        [--profile OUT.cpuprofile] [--screenshot OUT.png]
 // Exits 1 on a failure, 77 when chromium or puppeteer-core is missing.
 'use strict';
@@ -21,13 +23,14 @@ function option(name, fallback) {
 const [webDir, asset] = args;
 if (!asset || !fs.existsSync(asset)) {
   console.error('usage: node measure.js WEB_DIR ASSET [--fps SECONDS] [--size WxH] [--steps N] ' +
-                '[--profile OUT.cpuprofile] [--screenshot OUT.png]' +
+                '[--evict MB] [--profile OUT.cpuprofile] [--screenshot OUT.png]' +
                 (asset ? `\nmeasure.js: ${asset}: no such file` : ''));
   process.exit(2);
 }
 const fpsSeconds = Number(option('--fps', '5'));
 const [width, height] = option('--size', '1280x720').split('x').map(Number);
 const steps = Number(option('--steps', '10000'));
+const evictMb = Number(option('--evict', '0'));
 const profile = option('--profile', null);
 const screenshot = option('--screenshot', null);
 runWebPlayer('measure.js', webDir, asset, { width, height, echo: false, timeout: 300000 },
@@ -48,7 +51,8 @@ runWebPlayer('measure.js', webDir, asset, { width, height, echo: false, timeout:
     await session.send('Profiler.start');
   }
   const benchmark = steps > 0
-    ? await page.evaluate((n) => window.fourd.benchmark(n, 1 / 60), steps) : null;
+    ? await page.evaluate((o) => window.fourd.benchmark(o.n, 1 / 60, o.mb), { n: steps, mb: evictMb })
+    : null;
   if (session) {
     const { profile: p } = await session.send('Profiler.stop');
     fs.writeFileSync(profile, JSON.stringify(p));
