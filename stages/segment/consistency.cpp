@@ -30,6 +30,13 @@ constexpr int kMinConfirming = 3;
 constexpr double kHiddenStep = 0.25;
 constexpr float kHiddenMargin = 1.0f;
 constexpr int kHiddenTolerance = 0;
+// A camera whose own pixel there is a candidate too (it also left out something off its
+// plate) dissents weakly: the same camouflage often takes a hand or a shoe from two cameras
+// at once, and then each vetoed the other's recovery. This many weak dissents are allowed, at
+// points higher than kWeakAbove of the coarse hull's height above the floor only: lower, the
+// floor behind the point may hold the performer's shadow, which every camera leaves out.
+constexpr int kWeakTolerance = 1;
+constexpr double kWeakAbove = 0.25;
 
 // Per camera, the distance of every pixel to the nearest foreground pixel of `masks[c]`.
 std::vector<cv::Mat> distance_to_foreground(const std::vector<cv::Mat>& masks) {
@@ -211,13 +218,23 @@ void ConsistencyCheck::recover_hidden(std::vector<cv::Mat>& silhouettes,
                                       bool above_floor) const {
   const std::size_t n = cameras_.size();
   if (!usable_ || silhouettes.size() != n || candidates.size() != n) return;
-  const std::vector<std::uint8_t> kept = carve(distance_to_foreground(silhouettes));
+  // The pixels tried: those the coarse hull of silhouettes and candidates covers (of the
+  // silhouettes alone, a part two cameras lost would not be tried).
+  std::vector<cv::Mat> either(n);
+  for (std::size_t c = 0; c < n; ++c) either[c] = silhouettes[c] | candidates[c];
+  const std::vector<std::uint8_t> kept = carve(distance_to_foreground(either));
   // Per camera, every pixel's distance to the silhouette's outside: inside by the margin.
   std::vector<cv::Mat> depth_in(n);
   for (std::size_t c = 0; c < n; ++c) {
     cv::distanceTransform(silhouettes[c] != 0, depth_in[c], cv::DIST_L2, cv::DIST_MASK_3);
   }
   const double step = kHiddenStep * (box_.sizes().maxCoeff() / kGrid);
+  double top = -std::numeric_limits<double>::infinity();
+  for (std::size_t v = 0; v < centres_.size(); ++v) {
+    if (kept[v]) top = std::max(top, centres_[v].z());
+  }
+  const double weak_above = above_floor && top > 0 ? kWeakAbove * top
+                                                   : std::numeric_limits<double>::infinity();
   std::vector<cv::Mat> found(n);
   tbb::parallel_for(std::size_t{0}, n, [&](std::size_t c) {
     const Camera& cam = cameras_[c];
@@ -226,7 +243,8 @@ void ConsistencyCheck::recover_hidden(std::vector<cv::Mat>& silhouettes,
     // A point is the performer's when the other cameras that see it all (but
     // kHiddenTolerance) see it inside their silhouettes, at least kMinConfirming of them.
     auto inside = [&](const Eigen::Vector3d& p) {
-      int rejected = 0, confirming = 0;
+      int rejected = 0, weak = 0, confirming = 0;
+      const int weak_tolerance = p.z() > weak_above ? kWeakTolerance : 0;
       for (std::size_t k = 0; k < n; ++k) {
         if (k == c) continue;
         const Camera& other = cameras_[k];
@@ -235,7 +253,8 @@ void ConsistencyCheck::recover_hidden(std::vector<cv::Mat>& silhouettes,
         const int u = static_cast<int>(px.x()), v = static_cast<int>(px.y());
         if (depth_in[k].at<float>(v, u) >= kHiddenMargin) {
           ++confirming;
-        } else if (++rejected > kHiddenTolerance) {
+        } else if (candidates[k].at<std::uint8_t>(v, u) != 0 ? ++weak > weak_tolerance
+                                                             : ++rejected > kHiddenTolerance) {
           return false;
         }
       }

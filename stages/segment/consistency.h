@@ -37,8 +37,11 @@ class ConsistencyCheck {
   // stripe of the rug, skin over a beige floor, a shoe darker than the floor by a shadow's
   // factor): adds to each silhouette the pixels of `candidates[c]` (CV_8UC1) outside it whose
   // ray passes a point that every other camera seeing it sees inside its silhouette by
-  // kHiddenMargin px, at least kMinConfirming of them. Only pixels the coarse hull covers are
-  // tried, along their ray inside the checked volume, above the floor z = 0 when `above_floor`.
+  // kHiddenMargin px, at least kMinConfirming of them; a camera whose own pixel there is a
+  // candidate too dissents only weakly, and one weak dissent is allowed above a quarter of the
+  // coarse hull's height when `above_floor`. Only pixels the coarse hull of silhouettes and
+  // candidates covers are tried, along their ray inside the checked volume, above the floor
+  // z = 0 when `above_floor`.
   // The test is per pixel, not per voxel: the coarse hull alone fills the shadow between the
   // feet.
   void recover_hidden(std::vector<cv::Mat>& silhouettes, const std::vector<cv::Mat>& candidates,
