@@ -15,6 +15,8 @@ find_package(SQLite3 REQUIRED)
 find_path(XXHASH_INCLUDE_DIR xxhash.h REQUIRED)
 find_library(XXHASH_LIBRARY xxhash REQUIRED)
 find_path(TINYGLTF_INCLUDE_DIR tiny_gltf.h REQUIRED)
+# gzip of the web package (fourd-export --web; pipeline/core/gzip.h; zlib1g-dev).
+find_package(ZLIB REQUIRED)
 # EXT_meshopt_compression for fourd-export --compress (libmeshoptimizer-dev).
 find_package(meshoptimizer CONFIG REQUIRED)
 find_program(COLMAP_EXECUTABLE colmap)

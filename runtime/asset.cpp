@@ -9,6 +9,9 @@
 
 #include "pipeline/core/binary_format.h"
 #include "pipeline/core/error.h"
+#include "pipeline/core/files.h"
+#include "pipeline/core/gzip.h"
+#include "runtime/asset_packing.h"
 
 namespace fourd {
 
@@ -25,18 +28,44 @@ constexpr std::uint64_t kMaxTextureImages = 1 << 16;
 // A node: the motion space (its own file's layout) followed by its normals: the inputs' in
 // float, the other references' as fp16 displacements (before version 4: every reference's in
 // float, converted at load like the positions).
-void write_space(BinaryWriter& w, const GraphSpace& g) {
-  write_motion_space_fields(w, g.motion);
-  w.write_span(std::span<const float>(g.normals.data(), g.normals.size()));
-  w.write_span(
-      std::span<const std::uint16_t>(g.normal_displacements.data(), g.normal_displacements.size()));
+// (version 6) A byte says how the geometry (frames, displacements, normals) is stored: 0 as
+// above, 1 packed (runtime/asset_packing.h): the motion space's fields with empty frames and
+// displacements, empty normals, then the packed geometry.
+void write_space(BinaryWriter& w, const GraphSpace& g, const AssetPacking* packing) {
+  w.write<std::uint8_t>(packing != nullptr ? 1 : 0);
+  if (packing != nullptr) {
+    MotionSpace shell = g.motion;
+    shell.blend.frames.clear();
+    shell.blend.displacements.clear();
+    write_motion_space_fields(w, shell);
+    w.write_span(std::span<const float>());
+    w.write_span(std::span<const std::uint16_t>());
+    write_packed_geometry(w, g, *packing);
+  } else {
+    write_motion_space_fields(w, g.motion);
+    w.write_span(std::span<const float>(g.normals.data(), g.normals.size()));
+    w.write_span(std::span<const std::uint16_t>(g.normal_displacements.data(),
+                                                g.normal_displacements.size()));
+  }
 }
 
 GraphSpace read_space(BinaryReader& r) {
   GraphSpace g;
+  const std::uint8_t packed = r.version() >= kAssetVersionPacked ? r.read<std::uint8_t>() : 0;
+  if (packed > 1) {
+    throw InputError(fmt::format("{}: unknown geometry encoding {}", r.path().string(), packed));
+  }
   const bool displacements = r.version() >= kAssetVersionDisplacements;
   g.motion = read_motion_space_fields(r, {.arc_angles = true, .displacements = displacements});
-  if (displacements) {
+  if (packed == 1) {
+    if (!g.motion.blend.frames.empty() || !g.motion.blend.displacements.empty() ||
+        !read_aligned<float>(r, "normals").empty() ||
+        !read_aligned<std::uint16_t>(r, "normal displacements").empty()) {
+      throw InputError(fmt::format("{}: motion space '{}' is packed but also stores plain frames",
+                                   r.path().string(), g.motion.name));
+    }
+    read_packed_geometry(r, &g);
+  } else if (displacements) {
     g.normals = read_aligned<float>(r, "normals");
     g.normal_displacements = read_aligned<std::uint16_t>(r, "normal displacements");
   } else {
@@ -196,7 +225,9 @@ AssetTextures read_textures(BinaryReader& r, std::size_t spaces) {
 
 }  // namespace
 
-void save_asset(const std::filesystem::path& path, const Asset& asset) {
+namespace {
+
+BinaryWriter asset_payload(const Asset& asset, const AssetPacking* packing) {
   const MotionGraph& g = asset.graph;
   g.check();
   asset.transitions.check();
@@ -220,16 +251,46 @@ void save_asset(const std::filesystem::path& path, const Asset& asset) {
   w.write<double>(t.cost_unit);
   w.write<double>(t.one_shot_target_t);
   w.write<std::uint64_t>(g.spaces.size());
-  for (const GraphSpace& s : g.spaces) write_space(w, s);
+  for (const GraphSpace& s : g.spaces) write_space(w, s, packing);
   w.write<std::uint64_t>(g.edges.size());
   for (const GraphEdge& e : g.edges) write_edge(w, e);
   for (const GraphSpace& s : g.spaces) w.write<std::int32_t>(s.default_successor);
   write_textures(w, g.textures);
-  w.save(path, kAssetMagic, kAssetVersion);
+  return w;
+}
+
+}  // namespace
+
+void save_asset(const std::filesystem::path& path, const Asset& asset) {
+  asset_payload(asset, nullptr).save(path, kAssetMagic, kAssetVersion);
+}
+
+void save_web_package(const std::filesystem::path& path, const Asset& asset,
+                      const AssetPacking& packing) {
+  packing.check();
+#ifdef FOURD_NO_ZLIB
+  (void)asset;
+  throw Error(fmt::format("{}: this build writes no web packages (no zlib)", path.string()));
+#else
+  const std::string bytes = asset_payload(asset, &packing).file_bytes(kAssetMagic, kAssetVersion);
+  write_file_atomic(path, gzip_compress(bytes));
+#endif
 }
 
 Asset load_asset(const std::filesystem::path& path) {
-  BinaryReader r = BinaryReader::open(path, kAssetMagic, {2, 3, 4, kAssetVersion});
+  std::string bytes = read_file(path);
+  if (is_gzip(bytes)) {  // a web package
+#ifdef FOURD_NO_ZLIB
+    throw InputError(fmt::format("{}: gzip-compressed (a web package): inflate it before loading "
+                                 "(the web page does, with DecompressionStream)",
+                                 path.string()));
+#else
+    bytes = gzip_decompress(bytes, path.string());
+#endif
+  }
+  static constexpr std::uint32_t kVersions[] = {2, 3, kAssetVersionDisplacements,
+                                                  kAssetVersionSuccessors, kAssetVersion};
+  BinaryReader r = BinaryReader::from_bytes(path, std::move(bytes), kAssetMagic, kVersions);
   Asset asset;
   MotionGraph& g = asset.graph;
   g.name = r.read_string();

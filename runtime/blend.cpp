@@ -13,6 +13,9 @@
 #include <immintrin.h>
 #include <cpuid.h>
 #endif
+#if defined(__wasm_simd128__)
+#include <wasm_simd128.h>
+#endif
 
 #include "pipeline/core/error.h"
 
@@ -111,10 +114,12 @@ void add_source(BlendSources* out, const float* frame, double coefficient) {
   ++out->count;
 }
 
-void add_displacement(BlendSources* out, const std::uint16_t* frame, double coefficient) {
+void add_displacement(const BlendSpace& space, BlendSources* out, const std::uint16_t* frame,
+                      double coefficient) {
   if (coefficient == 0) return;
   assert(out->displacement_count < kMaxBlendDisplacements);
   out->displacement_sources[out->displacement_count] = frame;
+  out->displacement_floats[out->displacement_count] = space.displacement_float(frame);
   out->displacement_coefficients[out->displacement_count] = static_cast<float>(coefficient);
   ++out->displacement_count;
 }
@@ -134,8 +139,8 @@ void add_time_samples(const BlendSpace& space, std::span<const int> refs, std::s
       continue;
     }
     for (int i = 0; i < n; ++i) a[i] += g[k] * space.reference_weights[r * n + i];
-    add_displacement(out, space.displacement(r, f), (1 - alpha) * g[k]);
-    if (alpha > 0) add_displacement(out, space.displacement(r, f + 1), alpha * g[k]);
+    add_displacement(space, out, space.displacement(r, f), (1 - alpha) * g[k]);
+    if (alpha > 0) add_displacement(space, out, space.displacement(r, f + 1), alpha * g[k]);
   }
   for (int i = 0; i < n; ++i) {
     add_source(out, space.frame(i, f), (1 - alpha) * a[i]);
@@ -146,34 +151,44 @@ void add_time_samples(const BlendSpace& space, std::span<const int> refs, std::s
 // out = sum of K float and H half sources, scaled; K and H are template parameters so the
 // loops over sources unroll and the loop over values vectorises (the sources never alias the
 // output). The float and the half sums are separate chains (shorter dependencies).
-template <int K, int H, bool kAccumulate>
+// The displacements as the kernel reads them: the halves, or their decoded floats.
+inline const std::uint16_t* displacement_frame(const BlendSources& s, int k, std::uint16_t*) {
+  return s.displacement_sources[k];
+}
+inline const float* displacement_frame(const BlendSources& s, int k, float*) {
+  return s.displacement_floats[k];
+}
+inline float to_float(std::uint16_t h) { return half_to_float(h); }
+inline float to_float(float f) { return f; }
+
+template <int K, int H, bool kAccumulate, class D = std::uint16_t>
 inline __attribute__((always_inline)) void weighted_sum_body(const BlendSources& s, std::size_t n,
                                                              float* __restrict out) {
   std::array<const float*, std::max(K, 1)> src{};
   std::array<float, std::max(K, 1)> c{};
-  std::array<const std::uint16_t*, std::max(H, 1)> dsrc{};
+  std::array<const D*, std::max(H, 1)> dsrc{};
   std::array<float, std::max(H, 1)> dc{};
   for (int k = 0; k < K; ++k) {
     src[k] = s.sources[k];
     c[k] = s.coefficients[k];
   }
   for (int k = 0; k < H; ++k) {
-    dsrc[k] = s.displacement_sources[k];
+    dsrc[k] = displacement_frame(s, k, static_cast<D*>(nullptr));
     dc[k] = s.displacement_coefficients[k];
   }
 #pragma GCC ivdep
   for (std::size_t i = 0; i < n; ++i) {
     float acc = 0, dacc = 0;
     for (int k = 0; k < K; ++k) acc += c[k] * src[k][i];
-    for (int k = 0; k < H; ++k) dacc += dc[k] * half_to_float(dsrc[k][i]);
+    for (int k = 0; k < H; ++k) dacc += dc[k] * to_float(dsrc[k][i]);
     if constexpr (H > 0) acc = K > 0 ? acc + dacc : dacc;
     out[i] = kAccumulate ? out[i] + acc : acc;
   }
 }
 
-template <int K, int H, bool kAccumulate>
+template <int K, int H, bool kAccumulate, class D = std::uint16_t>
 void weighted_sum_k(const BlendSources& s, std::size_t n, float* out) {
-  weighted_sum_body<K, H, kAccumulate>(s, n, out);
+  weighted_sum_body<K, H, kAccumulate, D>(s, n, out);
 }
 
 // The build targets baseline x86-64 (SSE2: 4 floats per instruction, halves converted with
@@ -221,6 +236,59 @@ __attribute__((target("avx2,fma,f16c"))) void weighted_sum_k_avx2(const BlendSou
 
 #endif
 
+// WebAssembly's 128-bit SIMD (the web build, -msimd128) has no half conversion: converting with
+// half_to_float's integer steps costs more than the rest of the sum, so the web build decodes the
+// displacements to float once (decode_displacements) and runs this kernel on the floats: 8
+// values per iteration (two vectors of 4 floats). It computes exactly what weighted_sum_body
+// does (same operations in the same order, no fused multiply-add; half_to_float is exact), so
+// its results are those of the generic loop on the halves to the bit.
+#if defined(__wasm_simd128__)
+#define FOURD_BLEND_WASM_SIMD 1
+template <int K, int H, bool kAccumulate>
+void weighted_sum_k_simd128(const BlendSources& s, std::size_t n, float* out) {
+  const float* src[std::max(K, 1)]{};
+  v128_t c[std::max(K, 1)];
+  const float* dsrc[std::max(H, 1)]{};
+  v128_t dc[std::max(H, 1)];
+  for (int k = 0; k < K; ++k) {
+    src[k] = s.sources[k];
+    c[k] = wasm_f32x4_splat(s.coefficients[k]);
+  }
+  for (int k = 0; k < H; ++k) {
+    dsrc[k] = s.displacement_floats[k];
+    dc[k] = wasm_f32x4_splat(s.displacement_coefficients[k]);
+  }
+  std::size_t i = 0;
+  for (; i + 8 <= n; i += 8) {
+    v128_t lo = wasm_f32x4_const_splat(0.f), hi = lo, dlo = lo, dhi = lo;
+    for (int k = 0; k < K; ++k) {
+      lo = wasm_f32x4_add(lo, wasm_f32x4_mul(c[k], wasm_v128_load(src[k] + i)));
+      hi = wasm_f32x4_add(hi, wasm_f32x4_mul(c[k], wasm_v128_load(src[k] + i + 4)));
+    }
+    for (int k = 0; k < H; ++k) {
+      dlo = wasm_f32x4_add(dlo, wasm_f32x4_mul(dc[k], wasm_v128_load(dsrc[k] + i)));
+      dhi = wasm_f32x4_add(dhi, wasm_f32x4_mul(dc[k], wasm_v128_load(dsrc[k] + i + 4)));
+    }
+    if constexpr (H > 0) {
+      lo = K > 0 ? wasm_f32x4_add(lo, dlo) : dlo;
+      hi = K > 0 ? wasm_f32x4_add(hi, dhi) : dhi;
+    }
+    if constexpr (kAccumulate) {
+      lo = wasm_f32x4_add(wasm_v128_load(out + i), lo);
+      hi = wasm_f32x4_add(wasm_v128_load(out + i + 4), hi);
+    }
+    wasm_v128_store(out + i, lo);
+    wasm_v128_store(out + i + 4, hi);
+  }
+  if (i < n) {  // a tail shorter than 8 values (frames are whole vectors; only odd callers)
+    BlendSources tail = s;
+    for (int k = 0; k < K; ++k) tail.sources[k] += i;
+    for (int k = 0; k < H; ++k) tail.displacement_floats[k] += i;
+    weighted_sum_body<K, H, kAccumulate, float>(tail, n - i, out + i);
+  }
+}
+#endif
+
 // One kernel per (float count, half count): a table indexed by K * (kMaxBlendDisplacements + 1)
 // + H, filled at compile time.
 using Kernel = void (*)(const BlendSources&, std::size_t, float*);
@@ -238,6 +306,18 @@ constexpr std::array<Kernel, sizeof...(I)> kernel_table(std::index_sequence<I...
                            kAccumulate>...}};
 }
 
+// The kernels on decoded displacements (BlendSources::decoded).
+template <bool kAccumulate, std::size_t... I>
+constexpr std::array<Kernel, sizeof...(I)> decoded_kernel_table(std::index_sequence<I...>) {
+#ifdef FOURD_BLEND_WASM_SIMD
+  return {{&weighted_sum_k_simd128<static_cast<int>(I) / kHalfCounts,
+                                   static_cast<int>(I) % kHalfCounts, kAccumulate>...}};
+#else
+  return {{&weighted_sum_k<static_cast<int>(I) / kHalfCounts, static_cast<int>(I) % kHalfCounts,
+                           kAccumulate, float>...}};
+#endif
+}
+
 template <bool kAccumulate>
 void dispatch_weighted_sum(const BlendSources& s, std::size_t n, float* out,
                            bool allow_avx2 = true) {
@@ -246,6 +326,11 @@ void dispatch_weighted_sum(const BlendSources& s, std::size_t n, float* out,
          "a blend reads 1 to kMaxBlendSources float and 0 to kMaxBlendDisplacements half frames");
   using Indices = std::make_index_sequence<(kMaxBlendSources + 1) * kHalfCounts>;
   const int index = s.count * kHalfCounts + s.displacement_count;
+  if (s.decoded()) {
+    static constexpr auto kDecoded = decoded_kernel_table<kAccumulate>(Indices{});
+    kDecoded[index](s, n, out);
+    return;
+  }
 #ifdef FOURD_BLEND_AVX2
   if (allow_avx2 && cpu_has_avx2_fma_f16c()) {
     static constexpr auto kAvx2 = kernel_table<kAccumulate, true>(Indices{});
@@ -522,6 +607,11 @@ void split_reference_frames(const BlendSpace& space, std::span<const float> all,
                           displacements->data() + (j - n) * per_reference + at);
     }
   }
+}
+
+void decode_displacements(const AlignedHalfs& halves, AlignedFloats* floats) {
+  floats->resize(halves.size());
+  for (std::size_t i = 0; i < halves.size(); ++i) (*floats)[i] = half_to_float(halves[i]);
 }
 
 BlendedFrame make_blended_frame(const BlendSpace& space) {

@@ -127,6 +127,11 @@ struct BlendSpace {
   // Displacements D_j(f) = M_j(f) - M_L(f, w_j) of the other references at every frame, fp16:
   // [reference - N][frame][x | y | z planes].
   AlignedHalfs displacements;
+  // Empty, or the displacements decoded to float, in the same layout (decode_displacements):
+  // evaluations then read these instead of the halves. For targets without a half-to-float
+  // instruction (the web build: WebAssembly SIMD has none), where converting every value of
+  // every evaluation costs more than reading twice the bytes.
+  AlignedFloats displacement_floats;
   // Cells tiling the weight simplex, as the reference indices of their corners: N = 1:
   // {0, -1, -1}; N = 2: weight segments {a, b, -1}; N = 3: weight triangles {a, b, c}. Cells
   // meet edge to edge (no reference inside an edge except its midpoint node), so the blend is
@@ -159,9 +164,23 @@ struct BlendSpace {
     return displacements.data() +
            (static_cast<std::size_t>(reference - num_inputs) * num_frames + f) * frame_stride();
   }
+  // The decoded twin of a displacement frame (decode_displacements), or null.
+  const float* displacement_float(const std::uint16_t* displacement_frame) const {
+    return displacement_floats.empty()
+               ? nullptr
+               : displacement_floats.data() + (displacement_frame - displacements.data());
+  }
   // Throws InputError if sizes disagree, a weight is off the simplex or a cell is invalid.
   void check() const;
 };
+
+// Fills space.displacement_floats with every displacement converted to float (exactly:
+// half_to_float), so evaluations read floats: the same results, twice the memory of the
+// halves. Call again after changing the displacements.
+void decode_displacements(const AlignedHalfs& halves, AlignedFloats* floats);
+inline void decode_displacements(BlendSpace* space) {
+  decode_displacements(space->displacements, &space->displacement_floats);
+}
 
 // A space with the N inputs as its only references (frames zeroed, to be filled with
 // set_frame) and the single cell spanning the whole simplex.
@@ -218,9 +237,14 @@ struct BlendSources {
   int displacement_count = 0;
   std::array<const std::uint16_t*, kMaxBlendDisplacements> displacement_sources{};
   std::array<float, kMaxBlendDisplacements> displacement_coefficients{};
+  // With decoded displacements (BlendSpace::displacement_floats): the same frames in float,
+  // which the kernel then reads instead of displacement_sources; otherwise null.
+  std::array<const float*, kMaxBlendDisplacements> displacement_floats{};
+  bool decoded() const { return displacement_count > 0 && displacement_floats[0] != nullptr; }
   // Bytes read for `values` values per frame.
   std::size_t read_bytes(std::size_t values) const {
-    return values * (count * sizeof(float) + displacement_count * sizeof(std::uint16_t));
+    return values * (count * sizeof(float) +
+                     displacement_count * (decoded() ? sizeof(float) : sizeof(std::uint16_t)));
   }
 };
 

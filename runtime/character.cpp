@@ -42,6 +42,8 @@ void to_normals(const GraphSpace& space, const BlendSources& positions, BlendSou
   for (int k = 0; k < positions.count; ++k) normals->sources[k] = space.normals_for(positions.sources[k]);
   for (int k = 0; k < positions.displacement_count; ++k) {
     normals->displacement_sources[k] = space.normals_for(positions.displacement_sources[k]);
+    normals->displacement_floats[k] =
+        space.normal_displacement_float(positions.displacement_floats[k]);
   }
 }
 

@@ -35,6 +35,8 @@ struct GraphSpace {
   MotionSpace motion;
   AlignedFloats normals;              // N x F x (x | y | z planes), like motion.blend.frames
   AlignedHalfs normal_displacements;  // (#R - N) x F x planes, like motion.blend.displacements
+  // Empty, or normal_displacements decoded to float, like motion.blend.displacement_floats.
+  AlignedFloats normal_displacement_floats;
   // Where this space goes on when it ends with nothing requested (a one-shot space): the index
   // of another space it has an edge to, or -1 (a cyclic space loops; a one-shot space with -1
   // holds its last pose). The graph stage chooses it (choose_default_successor) and the asset
@@ -55,6 +57,18 @@ struct GraphSpace {
   const std::uint16_t* normals_for(const std::uint16_t* position_displacement) const {
     return normal_displacements.data() +
            (position_displacement - motion.blend.displacements.data());
+  }
+  // The decoded normal displacements where a decoded position displacement sits, or null.
+  const float* normal_displacement_float(const float* position_displacement) const {
+    return position_displacement == nullptr || normal_displacement_floats.empty()
+               ? nullptr
+               : normal_displacement_floats.data() +
+                     (position_displacement - motion.blend.displacement_floats.data());
+  }
+  // Decodes the position and normal displacements to float (BlendSpace::displacement_floats).
+  void decode_displacements() {
+    fourd::decode_displacements(&motion.blend);
+    fourd::decode_displacements(normal_displacements, &normal_displacement_floats);
   }
 };
 

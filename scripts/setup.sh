@@ -8,6 +8,7 @@ PACKAGES=(
   libeigen3-dev libopencv-dev libcgal-dev libopenmesh-dev libembree-dev
   libopenimageio-dev openimageio-tools libyaml-cpp-dev nlohmann-json3-dev libcli11-dev
   libtbb-dev libfmt-dev libxxhash-dev libtinygltf-dev libmeshoptimizer-dev libsqlite3-dev
+  zlib1g-dev  # gzip of the web package (runtime/asset_packing.h)
   libgtest-dev libgmock-dev libbenchmark-dev
   libglfw3-dev libimgui-dev libepoxy-dev xvfb xauth libgl1-mesa-dri
   clang libclang-rt-14-dev

@@ -89,10 +89,17 @@ std::string run_script(const std::string& text, int record_every, int show_frame
     return error_json(e);
   }
 }
-std::string benchmark(int steps, double dt) {
-  const fourd::web::StepBenchmark b = fourd::web::benchmark_steps(player->asset(), steps, dt);
-  return nlohmann::json{{"steps", b.steps}, {"vertices", b.vertices}, {"mean_us", b.mean_us},
-                        {"total_ms", b.total_ms}}.dump();
+std::string benchmark(int steps, double dt, double evict_mb) {
+  const fourd::web::StepBenchmark b = fourd::web::benchmark_steps(
+      player->asset(), steps, dt, 5, static_cast<std::size_t>(evict_mb * (1 << 20)));
+  return nlohmann::json{{"steps", b.steps},
+                        {"rounds", b.rounds},
+                        {"evict_bytes", b.evict_bytes},
+                        {"vertices", b.vertices},
+                        {"mean_us", b.mean_us},
+                        {"median_us", b.median_us},
+                        {"total_ms", b.total_ms}}
+      .dump();
 }
 
 }  // namespace

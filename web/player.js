@@ -11,7 +11,8 @@
 //                                              {summary, frames: [...], positions: Float32Array}
 //   render({camera, unlit, width, height})     draw the shown frame once, returns a PNG data URL
 //   measureFps(seconds, width, height)         live play at that size: {fps, frame_ms, ...}
-//   benchmark(steps, dt)                       the runtime step benchmark (web/web_player.h)
+//   benchmark(steps, dt, evictMb)              the runtime step benchmark (web/step_benchmark.h;
+//                                              evictMb: cold caches before every step)
 //   state()                                    what the HUD shows
 'use strict';
 (() => {
@@ -110,42 +111,129 @@
       }
       o_color = vec4(color, 1.0);
     }`);
+  // The ground: the frame cleared to its colour, the sky drawn over it above the horizon, and
+  // metre lines 25 m around the character as line primitives (every 5th brighter, the world axes
+  // red (x) and green (y): fourd-view's grid). Under software WebGL every pixel shaded costs:
+  // a grid computed per pixel of the ground took as long as the character, and even a flat
+  // ground square twice as long as the sky above the horizon.
+  const kGround = 25;  // half size [m]
   const groundProgram = program(`#version 300 es
     precision highp float;
-    layout(location = 0) in vec2 a_corner;
+    layout(location = 0) in vec3 a_point;  // z: 0 the sky (x, y in normalised device
+                                          // coordinates), 1 a line of constant x, 2 of constant
+                                          // y (x, y [m] from the centre)
     uniform mat4 u_view_projection;
-    uniform vec2 u_centre;
-    out vec2 v_ground;
+    uniform vec2 u_centre;                 // whole metres
+    out vec3 v_color;
     void main() {
-      v_ground = u_centre + 25.0 * a_corner;
-      gl_Position = u_view_projection * vec4(v_ground, 0.0, 1.0);
+      if (a_point.z < 0.5) {
+        v_color = vec3(0.62, 0.68, 0.74);
+        gl_Position = vec4(a_point.xy, 0.0, 1.0);
+        return;
+      }
+      vec2 world = u_centre + a_point.xy;
+      float at = a_point.z < 1.5 ? world.x : world.y;  // the line's own coordinate
+      v_color = abs(at) < 0.5 ? (a_point.z < 1.5 ? vec3(0.3, 0.75, 0.3) : vec3(0.8, 0.3, 0.3))
+              : abs(mod(at + 0.5, 5.0) - 0.5) < 0.25 ? vec3(0.66) : vec3(0.56);
+      gl_Position = u_view_projection * vec4(world, 0.0, 1.0);
     }`, `#version 300 es
-    precision highp float;
-    in vec2 v_ground;
+    precision mediump float;
+    in vec3 v_color;
     out vec4 o_color;
-    void main() {
-      // Metre lines, every 5th brighter, the world axes red (x) and green (y): fourd-view's grid.
-      vec2 d = abs(fract(v_ground - 0.5) - 0.5) / fwidth(v_ground);
-      float line = 1.0 - clamp(min(d.x, d.y), 0.0, 1.0);
-      vec2 d5 = abs(fract(v_ground / 5.0 - 0.5) - 0.5) * 5.0 / fwidth(v_ground);
-      float major = 1.0 - clamp(min(d5.x, d5.y), 0.0, 1.0);
-      vec3 color = mix(vec3(0.47, 0.5, 0.46), vec3(0.56), line);
-      color = mix(color, vec3(0.66), major);
-      vec2 da = abs(v_ground) / fwidth(v_ground);
-      color = mix(color, vec3(0.8, 0.3, 0.3), 1.0 - clamp(da.y, 0.0, 1.0));
-      color = mix(color, vec3(0.3, 0.75, 0.3), 1.0 - clamp(da.x, 0.0, 1.0));
-      o_color = vec4(color, 1.0);
-    }`);
+    void main() { o_color = vec4(v_color, 1.0); }`);
+  // The sky's polygon (6 places), then the lines' end points, clipped to the view each frame
+  // (groundLines): SwiftShader drops a line whose end points lie far outside the view rather
+  // than clipping it, which lost every line near the camera.
   const groundVao = gl.createVertexArray();
+  const groundBuffer = gl.createBuffer();
+  const groundLineEnds = [];
+  for (let i = -kGround; i <= kGround; ++i) {
+    groundLineEnds.push([i, -kGround, 1, i, kGround, 1], [-kGround, i, 2, kGround, i, 2]);
+  }
+  const groundPoints = new Float32Array(3 * (6 + 2 * groundLineEnds.length));
   gl.bindVertexArray(groundVao);
-  gl.bindBuffer(gl.ARRAY_BUFFER, gl.createBuffer());
-  gl.bufferData(gl.ARRAY_BUFFER, new Float32Array([-1, -1, 1, -1, 1, 1, -1, -1, 1, 1, -1, 1]), gl.STATIC_DRAW);
+  gl.bindBuffer(gl.ARRAY_BUFFER, groundBuffer);
+  gl.bufferData(gl.ARRAY_BUFFER, groundPoints.byteLength, gl.DYNAMIC_DRAW);
   gl.enableVertexAttribArray(0);
-  gl.vertexAttribPointer(0, 2, gl.FLOAT, false, 0, 0);
+  gl.vertexAttribPointer(0, 3, gl.FLOAT, false, 0, 0);
   gl.bindVertexArray(null);
 
+  // The inverse of a 4x4 matrix (column-major; Gauss-Jordan with partial pivoting).
+  function invert(m) {
+    const a = Array.from({ length: 4 }, (_, r) => [0, 1, 2, 3].map((c) => m[4 * c + r])
+                                                .concat([0, 1, 2, 3].map((c) => (c === r ? 1 : 0))));
+    for (let c = 0; c < 4; ++c) {
+      let pivot = c;
+      for (let r = c + 1; r < 4; ++r) if (Math.abs(a[r][c]) > Math.abs(a[pivot][c])) pivot = r;
+      [a[c], a[pivot]] = [a[pivot], a[c]];
+      const d = a[c][c];
+      for (let k = 0; k < 8; ++k) a[c][k] /= d;
+      for (let r = 0; r < 4; ++r) {
+        if (r === c) continue;
+        const f = a[r][c];
+        for (let k = 0; k < 8; ++k) a[r][k] -= f * a[c][k];
+      }
+    }
+    const inv = new Float32Array(16);
+    for (let r = 0; r < 4; ++r) for (let c = 0; c < 4; ++c) inv[4 * c + r] = a[r][4 + c];
+    return inv;
+  }
+
+  // Writes the sky's polygon (a triangle fan; returns its number of points): the part of the
+  // view whose rays rise above the horizontal through the eye. The far-plane point of normalised
+  // device coordinates (x, y) is inv(vp) (x, y, 1, 1), affine in x and y, and so is its height
+  // above the eye: the sky is the screen square cut by one straight line.
+  function skyPolygon(vp, eye) {
+    const inv = invert(vp);
+    const rise = (x, y) => {
+      const z = inv[2] * x + inv[6] * y + inv[10] + inv[14];
+      const w = inv[3] * x + inv[7] * y + inv[11] + inv[15];
+      return (z - eye[2] * w) * Math.sign(w);
+    };
+    const corners = [[-1, -1], [1, -1], [1, 1], [-1, 1]];
+    let n = 0;
+    corners.forEach(([x, y], k) => {
+      const [x1, y1] = corners[(k + 1) % 4];
+      const r0 = rise(x, y), r1 = rise(x1, y1);
+      if (r0 >= 0) groundPoints.set([x, y, 0], 3 * n++);
+      if ((r0 >= 0) !== (r1 >= 0)) {
+        const t = r0 / (r0 - r1);
+        groundPoints.set([x + t * (x1 - x), y + t * (y1 - y), 0], 3 * n++);
+      }
+    });
+    return n;
+  }
+
+  // Writes the parts of the lines inside the view of `vp` (column-major) around `centre` after
+  // the sky's places in the ground buffer; returns the number of line end points.
+  function groundLines(vp, centre) {
+    const clip = (x, y) => {  // clip coordinates of a point of the ground
+      const X = centre[0] + x, Y = centre[1] + y;
+      return [0, 1, 2, 3].map((r) => vp[r] * X + vp[4 + r] * Y + vp[12 + r]);
+    };
+    let n = 6;
+    for (const [x0, y0, kind, x1, y1] of groundLineEnds) {
+      const a = clip(x0, y0), b = clip(x1, y1);
+      // The part of a..b inside -w <= x, y, z <= w (Liang-Barsky on the six planes).
+      let t0 = 0, t1 = 1;
+      for (let axis = 0; axis < 3 && t0 <= t1; ++axis) {
+        for (const sign of [1, -1]) {
+          const da = a[3] + sign * a[axis], db = b[3] + sign * b[axis];  // >= 0 inside
+          if (da < 0 && db < 0) { t0 = 1; t1 = 0; break; }
+          if (da < 0) t0 = Math.max(t0, da / (da - db));
+          else if (db < 0) t1 = Math.min(t1, da / (da - db));
+        }
+      }
+      if (t0 >= t1) continue;
+      groundPoints.set([x0 + t0 * (x1 - x0), y0 + t0 * (y1 - y0), kind,
+                        x0 + t1 * (x1 - x0), y0 + t1 * (y1 - y0), kind], 3 * n);
+      n += 2;
+    }
+    return n - 6;
+  }
+
   const character = { vao: null, count: 0, stride: 0, shape: null, staging: null, rows: 0,
-                      keys: null, layers: 0 };
+                      keys: null, layers: 0, closed: false };
 
   // Topology, per-corner UVs (vertices on chart seams duplicated, as fourd-view's renderer does)
   // and the shape texture.
@@ -190,7 +278,39 @@
     gl.texStorage2D(gl.TEXTURE_2D, 1, gl.R32F, kShapeWidth, character.rows);
     for (const p of [gl.TEXTURE_MIN_FILTER, gl.TEXTURE_MAG_FILTER]) gl.texParameteri(gl.TEXTURE_2D, p, gl.NEAREST);
     gl.bindTexture(gl.TEXTURE_2D, null);
+    character.closed = closedOutward(triangles, M.positions(), stride);
     return sources.length;
+  }
+
+  // Whether the mesh is closed and its triangles face outwards: every edge is shared by exactly
+  // two triangles that run along it in opposite directions, and the enclosed volume (of the
+  // shown frame) is positive. Then no back face can be seen from outside, and back faces are
+  // culled: they are most of the character's hidden pixels, and under software WebGL each of
+  // them costs its texture samples. A captured character's template is closed; an open surface
+  // is drawn from both sides.
+  function closedOutward(triangles, positions, stride) {
+    const edges = new Set();
+    const key = (a, b) => a * 4294967296 + b;
+    for (let t = 0; t < triangles.length; t += 3) {
+      for (let k = 0; k < 3; ++k) {
+        const e = key(triangles[t + k], triangles[t + (k + 1) % 3]);
+        if (edges.has(e)) return false;  // two triangles run along it the same way
+        edges.add(e);
+      }
+    }
+    for (let t = 0; t < triangles.length; t += 3) {
+      for (let k = 0; k < 3; ++k) {
+        if (!edges.has(key(triangles[t + (k + 1) % 3], triangles[t + k]))) return false;  // a border
+      }
+    }
+    let volume = 0;  // six times the signed volume
+    const p = (v) => [positions[v], positions[stride + v], positions[2 * stride + v]];
+    for (let t = 0; t < triangles.length; t += 3) {
+      const [a, b, c] = [p(triangles[t]), p(triangles[t + 1]), p(triangles[t + 2])];
+      volume += a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) +
+                a[2] * (b[0] * c[1] - b[1] * c[0]);
+    }
+    return volume > 0;
   }
 
   // The key textures: the asset's JPEG files, decoded by the browser, one layer each.
@@ -254,9 +374,11 @@
       gl.uniform1iv(u.u_layers, Int32Array.from(layers));
       gl.uniform1fv(u.u_weights, Float32Array.from(weights));
     }
+    if (character.closed) gl.enable(gl.CULL_FACE);  // counter-clockwise in front, back culled
     gl.bindVertexArray(character.vao);
     gl.drawElements(gl.TRIANGLES, character.count, gl.UNSIGNED_INT, 0);
     gl.bindVertexArray(null);
+    gl.disable(gl.CULL_FACE);
   }
 
   function drawScene(width, height) {
@@ -264,19 +386,25 @@
     const vp = Float32Array.from(M.viewProjection());
     const eye = Float32Array.from(M.eye());
     gl.viewport(0, 0, width, height);
-    gl.clearColor(0.62, 0.68, 0.74, 1);
+    gl.clearColor(0.47, 0.5, 0.46, 1);  // the ground's colour
     gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
-    gl.enable(gl.DEPTH_TEST);
-    gl.depthFunc(gl.LEQUAL);
+    // Sky and lines first, without depth: they hide nothing the character draws over them.
+    gl.disable(gl.DEPTH_TEST);
     const r = M.root();
     gl.useProgram(groundProgram.p);
     gl.uniformMatrix4fv(groundProgram.u.u_view_projection, false, vp);
-    gl.uniform2f(groundProgram.u.u_centre, Math.round(r[0]), Math.round(r[1]));
-    gl.enable(gl.POLYGON_OFFSET_FILL);
-    gl.polygonOffset(1, 1);
+    const centre = [Math.round(r[0]), Math.round(r[1])];
+    gl.uniform2f(groundProgram.u.u_centre, centre[0], centre[1]);
+    const sky = skyPolygon(vp, eye);
+    const lines = groundLines(vp, centre);
+    gl.bindBuffer(gl.ARRAY_BUFFER, groundBuffer);
+    gl.bufferSubData(gl.ARRAY_BUFFER, 0, groundPoints, 0, 3 * (6 + lines));
+    gl.bindBuffer(gl.ARRAY_BUFFER, null);
     gl.bindVertexArray(groundVao);
-    gl.drawArrays(gl.TRIANGLES, 0, 6);
-    gl.disable(gl.POLYGON_OFFSET_FILL);
+    if (sky >= 3) gl.drawArrays(gl.TRIANGLE_FAN, 0, sky);
+    gl.drawArrays(gl.LINES, 6, lines);
+    gl.enable(gl.DEPTH_TEST);
+    gl.depthFunc(gl.LEQUAL);
     drawCharacter(vp, eye, false);
   }
 
@@ -337,12 +465,29 @@
   }
 
   // ---- loading
+  // A web package (fourd-export --web) is gzip: the browser's own DecompressionStream inflates
+  // it, so the module needs no zlib; a plain asset passes as it is.
+  async function inflate(bytes) {
+    if (bytes.length < 2 || bytes[0] !== 0x1f || bytes[1] !== 0x8b) return bytes;
+    const stream = new Blob([bytes]).stream().pipeThrough(new DecompressionStream('gzip'));
+    return new Uint8Array(await new Response(stream).arrayBuffer());
+  }
+
   async function loadBytes(bytes, name) {
+    const started = performance.now();
+    try {
+      bytes = await inflate(bytes);
+    } catch (e) {
+      throw new Error(`${name}: not a readable gzip file (${e.message})`);
+    }
+    const inflateMs = performance.now() - started;
     M.FS.writeFile('/asset.fourd', bytes);
     const error = M.load('/asset.fourd');
     M.FS.unlink('/asset.fourd');
     if (error) throw new Error(`${name}: ${error}`);
     info = JSON.parse(M.info());
+    info.inflate_ms = inflateMs;
+    info.load_ms = performance.now() - started;
     const vertices = setMesh(M.triangles().slice(), M.cornerUvs().slice(), info.vertices, info.plane_stride);
     await uploadKeys(info.textures.count, info.textures.width, info.textures.height);
     const loco = info.spaces.find((s) => s.name === 'locomotion');
@@ -355,7 +500,8 @@
     last = 0;
     console.log(`fourd web: ${name}: ${info.vertices} vertices (${vertices} drawn), ` +
                 `${info.triangles} triangles, ${info.spaces.length} motion spaces, ` +
-                `${info.textures.count} key textures of ${info.textures.width}x${info.textures.height}`);
+                `${info.textures.count} key textures of ${info.textures.width}x${info.textures.height}` +
+                `${character.closed ? ", closed: back faces culled" : ""}`);
     return info;
   }
   async function load(url) {
@@ -514,7 +660,7 @@
       return { frames, seconds: elapsed, fps: frames / elapsed, frame_work_ms: mean(work),
                step_ms: mean(steps), width, height, state: JSON.parse(M.state()) };
     },
-    benchmark: (steps = 2000, dt = 1 / 60) => JSON.parse(M.benchmark(steps, dt)),
+    benchmark: (steps = 2000, dt = 1 / 60, evictMb = 0) => JSON.parse(M.benchmark(steps, dt, evictMb)),
   };
   window.fourd = api;
   api.ready = createFourdModule().then(async (module) => {

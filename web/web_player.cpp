@@ -20,10 +20,18 @@ using Clock = std::chrono::steady_clock;
 
 double middle(const GraphSpace& g) { return 0.5 * (g.parameter_min() + g.parameter_max()); }
 
+// The asset with its displacements decoded to float: WebAssembly has no half conversion, and
+// converting on every evaluation made the blend kernel 90 % of a step (docs/web.md).
+Asset load_decoded(const std::string& path) {
+  Asset asset = load_asset(path);
+  for (GraphSpace& space : asset.graph.spaces) space.decode_displacements();
+  return asset;
+}
+
 }  // namespace
 
 WebPlayer::WebPlayer(const std::string& asset_path)
-    : asset_(load_asset(asset_path)),
+    : asset_(load_decoded(asset_path)),
       character_(asset_.graph, asset_.transitions),
       controller_(character_) {
   const MotionGraph& graph = asset_.graph;

@@ -43,14 +43,30 @@ void BinaryWriter::write_bytes(const void* data, std::size_t size) {
   if (size > 0) payload_.append(static_cast<const char*>(data), size);
 }
 
-void BinaryWriter::save(const std::filesystem::path& path, const FileMagic& magic,
-                        std::uint32_t version) const {
+namespace {
+
+Header make_header(const FileMagic& magic, std::uint32_t version, std::string_view payload) {
   Header header{};
   std::memcpy(header.magic, magic.bytes().data(), sizeof(header.magic));
   header.version = version;
   header.byte_order = kByteOrderMarker;
-  header.payload_size = payload_.size();
-  header.checksum = hash_bytes(payload_);
+  header.payload_size = payload.size();
+  header.checksum = hash_bytes(payload);
+  return header;
+}
+
+}  // namespace
+
+std::string BinaryWriter::file_bytes(const FileMagic& magic, std::uint32_t version) const {
+  const Header header = make_header(magic, version, payload_);
+  std::string bytes(reinterpret_cast<const char*>(&header), sizeof(header));
+  bytes += payload_;
+  return bytes;
+}
+
+void BinaryWriter::save(const std::filesystem::path& path, const FileMagic& magic,
+                        std::uint32_t version) const {
+  const Header header = make_header(magic, version, payload_);
   AtomicFile file(path);
   file.stream().write(reinterpret_cast<const char*>(&header), sizeof(header));
   file.stream().write(payload_.data(), static_cast<std::streamsize>(payload_.size()));
@@ -63,7 +79,12 @@ BinaryReader::BinaryReader(std::filesystem::path path, std::string bytes, std::s
 
 BinaryReader BinaryReader::open(const std::filesystem::path& path, const FileMagic& magic,
                                 std::span<const std::uint32_t> supported_versions) {
-  std::string bytes = read_file(path);
+  return from_bytes(path, read_file(path), magic, supported_versions);
+}
+
+BinaryReader BinaryReader::from_bytes(const std::filesystem::path& path, std::string bytes,
+                                      const FileMagic& magic,
+                                      std::span<const std::uint32_t> supported_versions) {
   const std::string name = path.string();
   if (bytes.size() < sizeof(Header)) {
     throw InputError(fmt::format("{}: truncated: {} bytes, shorter than the {}-byte header", name,

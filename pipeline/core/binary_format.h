@@ -104,6 +104,8 @@ class BinaryWriter {
   std::size_t size() const { return payload_.size(); }
   void reserve(std::size_t bytes) { payload_.reserve(bytes); }
 
+  // Header + payload, the bytes save() writes (e.g. to compress them first).
+  std::string file_bytes(const FileMagic& magic, std::uint32_t version) const;
   // Header + payload, atomically. Throws IoError when the file cannot be written.
   void save(const std::filesystem::path& path, const FileMagic& magic, std::uint32_t version) const;
 
@@ -126,6 +128,11 @@ class BinaryReader {
         path, magic,
         std::span<const std::uint32_t>(supported_versions.begin(), supported_versions.size()));
   }
+
+  // The same from a file's bytes already in memory (e.g. inflated); `path` names it in errors.
+  static BinaryReader from_bytes(const std::filesystem::path& path, std::string bytes,
+                                 const FileMagic& magic,
+                                 std::span<const std::uint32_t> supported_versions);
 
   std::uint32_t version() const { return version_; }
   const std::filesystem::path& path() const { return path_; }

@@ -1,6 +1,7 @@
 // fourd-export: writes an asset as binary glTF 2.0 (.glb): the template mesh, every captured take
 // as an animation clip and optionally the baked result of a control script (runtime/gltf_export.h);
-// and/or one take or the script's result as a mesh sequence (runtime/mesh_sequence.h).
+// and/or one take or the script's result as a mesh sequence (runtime/mesh_sequence.h); and/or the
+// asset's web package (runtime/asset_packing.h).
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <fmt/ranges.h>
@@ -14,6 +15,7 @@
 #include "pipeline/core/guarded.h"
 #include "pipeline/core/log.h"
 #include "runtime/asset.h"
+#include "runtime/asset_packing.h"
 #include "runtime/gltf_export.h"
 #include "runtime/mesh_sequence.h"
 #include "runtime/player.h"
@@ -25,9 +27,11 @@ int main(int argc, char** argv) {
                "after the take (one morph target per frame, the root motion on the node) and, "
                "with --script, the frames a control script plays as one more clip; with "
                "--sequence, one take (--take) or the script's result as one mesh file and "
-               "texture per frame with a sequence.json manifest.",
+               "texture per frame with a sequence.json manifest; with --web, the asset packaged "
+               "for the web player (quantised, delta-coded geometry, gzip).",
                "fourd-export"};
-  std::string asset_path, out_path, script_path, clip_name, sequence_dir, take;
+  std::string asset_path, out_path, script_path, clip_name, sequence_dir, take, web_path;
+  AssetPacking packing;
   PlayerOptions player;
   GlbOptions glb;
   SequenceOptions sequence;
@@ -63,6 +67,19 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--texture-quality", glb.texture.quality, "jpeg / webp quality (1..100)")
       ->capture_default_str();
+  app.add_option("--web", web_path,
+                 "write the asset's web package (docs/web.md) to this file: geometry quantised "
+                 "and delta-coded, gzip; the web player and every loader of the runtime read it");
+  app.add_option("--web-position-step", packing.position_step,
+                 "with --web: grid step of the input frames' positions [m] (error <= step / 2 "
+                 "per coordinate)")
+      ->capture_default_str();
+  app.add_option("--web-displacement-step", packing.displacement_step,
+                 "with --web: grid step of the references' displacements [m]")
+      ->capture_default_str();
+  app.add_option("--web-normal-bits", packing.normal_bits,
+                 "with --web: bits per octahedral coordinate of the input normals (8..16)")
+      ->capture_default_str();
   app.add_flag("-v,--verbose", verbose, "debug messages");
   if (const auto code = parse_command_line(app, argc, argv)) return *code;
   if (verbose) log::set_level(log::Level::kDebug);
@@ -71,17 +88,31 @@ int main(int argc, char** argv) {
     glb.check();
     sequence.texture = glb.texture;
     sequence.check();
-    if (out_path.empty() && sequence_dir.empty())
-      throw UsageError("nothing to write: give -o FILE.glb and/or --sequence DIR");
+    packing.check();
+    if (out_path.empty() && sequence_dir.empty() && web_path.empty())
+      throw UsageError("nothing to write: give -o FILE.glb, --sequence DIR and/or --web FILE");
     if (!sequence_dir.empty() && take.empty() == script_path.empty())
       throw UsageError("--sequence needs one of --take NAME or --script FILE");
     if (!take.empty() && sequence_dir.empty())
       throw UsageError("--take is for --sequence");
     // An output folder that cannot be made fails now, not after the work.
     for (const std::filesystem::path& out : {std::filesystem::path(out_path).parent_path(),
-                                            std::filesystem::path(sequence_dir).parent_path()})
+                                            std::filesystem::path(sequence_dir).parent_path(),
+                                            std::filesystem::path(web_path).parent_path()})
       if (!out.empty()) ensure_directory(out);
     const Asset asset = load_asset(asset_path);
+    if (!web_path.empty()) {
+      save_web_package(web_path, asset, packing);
+      // What the package costs: read back as every loader reads it, against the original.
+      const Asset decoded = load_asset(web_path);
+      const PackingError error = packing_error(asset.graph, decoded.graph);
+      log::info("{}: web package, {:.1f} MB (asset {:.1f} MB); decoded: positions within {:.4f} "
+                "mm, normals within {:.3f} deg",
+                web_path, std::filesystem::file_size(web_path) / 1e6,
+                std::filesystem::file_size(asset_path) / 1e6, 1e3 * error.position_m,
+                error.normal_deg);
+    }
+    if (out_path.empty() && sequence_dir.empty()) return kExitOk;
     MeshAnimation animation;
     animation.name = asset.graph.name;
     animation.base = asset_template(asset);

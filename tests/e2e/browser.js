@@ -37,7 +37,11 @@ function serve(route) {
       res.end();
       return;
     }
-    res.writeHead(200, { 'Content-Type': types[path.extname(file)] || 'application/octet-stream' });
+    // Cross-origin isolated, as scripts/serve_web.sh serves the page: performance.now() then
+    // ticks in 5 us rather than 100 us steps (the HUD times single runtime steps with it).
+    res.writeHead(200, { 'Content-Type': types[path.extname(file)] || 'application/octet-stream',
+                         'Cross-Origin-Opener-Policy': 'same-origin',
+                         'Cross-Origin-Embedder-Policy': 'require-corp' });
     fs.createReadStream(file).pipe(res);
   });
   return new Promise((resolve) => server.listen(0, '127.0.0.1', () => resolve(server)));
@@ -70,4 +74,55 @@ function collectErrors(page, echo) {
   return errors;
 }
 
-module.exports = { requireBrowser, serve, launch, collectErrors };
+// The web player's files (WEB_DIR: index.html, player.js, fourd_web.js/.wasm) and one asset
+// served as /asset.fourd; resolves to the server.
+function serveWebPlayer(webDir, asset) {
+  return serve((url) => {
+    if (url === '/asset.fourd') return asset;
+    if (['/index.html', '/player.js', '/fourd_web.js', '/fourd_web.wasm'].includes(url)) {
+      return path.join(webDir, url.slice(1));
+    }
+    return null;
+  });
+}
+
+// Opens the web player of `server` (serveWebPlayer) in a new page of `browser` at width x
+// height and waits until its asset is loaded (or `timeout` ms). Resolves to {page, errors (still
+// collected), loadSeconds, info}; throws on a page error while loading.
+async function openWebPlayer(browser, server, { width, height, echo, timeout }) {
+  const page = await browser.newPage();
+  await page.setViewport({ width, height });
+  const errors = collectErrors(page, echo);
+  const started = Date.now();
+  await page.goto(`http://127.0.0.1:${server.address().port}/index.html?asset=/asset.fourd`);
+  await page.waitForFunction('window.fourd && window.fourd.info && window.fourd.info()',
+                             { timeout });
+  if (errors.length) throw new Error('page errors: ' + errors.join('; '));
+  const loadSeconds = (Date.now() - started) / 1000;
+  return { page, errors, loadSeconds, info: await page.evaluate(() => window.fourd.info()) };
+}
+
+// The frame of a script that drives the web player: serves WEB_DIR and ASSET, opens the page
+// (openWebPlayer `options`), runs `body({browser, page, errors, loadSeconds, info})`, closes the
+// browser and the server. On an error prints it after `name` and exits 1; exits 77 without
+// chromium or puppeteer-core.
+function runWebPlayer(name, webDir, asset, options, body) {
+  const packages = requireBrowser();
+  let server = null;
+  (async () => {
+    server = await serveWebPlayer(webDir, asset);
+    const browser = await launch(packages);
+    try {
+      await body({ browser, ...(await openWebPlayer(browser, server, options)) });
+    } finally {
+      await browser.close();
+      server.close();
+    }
+  })().catch((e) => {
+    console.error(`${name}: ${e.stack || e}`);
+    if (server) server.close();
+    process.exit(1);
+  });
+}
+
+module.exports = { requireBrowser, serve, launch, collectErrors, runWebPlayer };

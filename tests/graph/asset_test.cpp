@@ -6,12 +6,15 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <utility>
 
 #include "pipeline/core/error.h"
 #include "pipeline/core/files.h"
+#include "pipeline/core/gzip.h"
+#include "runtime/asset_packing.h"
 #include "tests/graph/test_graph.h"
 
 namespace fourd {
@@ -130,6 +133,73 @@ TEST_F(AssetTest, RefusesTruncatedAndCorruptFiles) {
   write_file_atomic(file_, "not an asset");
   EXPECT_THROW(load_asset(file_), InputError);
   EXPECT_THROW(load_asset(dir_ / "missing.fourd"), IoError);
+}
+
+// The web package (runtime/asset_packing.h): gzip around the same container, geometry on grids.
+// Every loader reads it; what is not geometry comes back exactly, the geometry within its
+// steps, and a truncated or corrupt package is refused with the file's name.
+TEST_F(AssetTest, WebPackageLoadsWithinItsSteps) {
+  Asset a;
+  a.graph = test::make_test_graph(true);
+  save_asset(file_, a);
+  const fs::path package = dir_ / "graph.web.fourd";
+  AssetPacking packing;
+  save_web_package(package, a, packing);
+  const std::string bytes = read_file(package);
+  ASSERT_TRUE(is_gzip(bytes));
+  EXPECT_LT(bytes.size(), fs::file_size(file_));
+  const Asset b = load_asset(package);
+  ASSERT_EQ(b.graph.spaces.size(), a.graph.spaces.size());
+  for (std::size_t k = 0; k < a.graph.spaces.size(); ++k) {
+    const GraphSpace& x = a.graph.spaces[k];
+    const GraphSpace& y = b.graph.spaces[k];
+    EXPECT_EQ(x.name(), y.name());
+    EXPECT_EQ(x.motion.blend.cells, y.motion.blend.cells);
+    EXPECT_EQ(x.motion.roots.size(), y.motion.roots.size());
+    EXPECT_EQ(x.motion.seconds, y.motion.seconds);
+    ASSERT_EQ(x.motion.blend.frames.size(), y.motion.blend.frames.size());
+    ASSERT_EQ(x.motion.blend.displacements.size(), y.motion.blend.displacements.size());
+    ASSERT_EQ(x.normals.size(), y.normals.size());
+    ASSERT_EQ(x.normal_displacements.size(), y.normal_displacements.size());
+    const BlendSpace& bx = x.motion.blend;
+    for (std::size_t i = 0; i < bx.frames.size(); ++i) {
+      if (i % bx.plane_stride >= static_cast<std::size_t>(bx.num_vertices)) continue;
+      ASSERT_LE(std::abs(bx.frames[i] - y.motion.blend.frames[i]), 0.5 * packing.position_step + 1e-6)
+          << x.name() << " value " << i;
+    }
+  }
+  for (std::size_t k = 0; k < a.graph.edges.size(); ++k) {
+    EXPECT_EQ(a.graph.edges[k].similarity.values, b.graph.edges[k].similarity.values);
+  }
+  const PackingError error = packing_error(a.graph, b.graph);
+  EXPECT_GT(error.position_m, 0);  // lossy: it did quantise
+  // Inputs within half a step per coordinate, displaced references within about 2 steps.
+  EXPECT_LE(error.position_m, 4 * packing.position_step);
+  EXPECT_LE(error.normal_deg, 0.1);
+  EXPECT_LE(error.normal_displacement, packing.normal_displacement_step);
+
+  // A coarser grid costs accuracy: the error follows the step.
+  AssetPacking coarse;
+  coarse.position_step = coarse.displacement_step = 1e-3;
+  save_web_package(package, a, coarse);
+  const PackingError coarse_error = packing_error(a.graph, load_asset(package).graph);
+  EXPECT_GT(coarse_error.position_m, 10 * error.position_m);
+  EXPECT_LE(coarse_error.position_m, 4 * coarse.position_step);
+
+  write_file_atomic(package, bytes.substr(0, bytes.size() / 2));
+  try {
+    load_asset(package);
+    FAIL() << "loaded a truncated package";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(package.string()), std::string::npos) << e.what();
+  }
+  std::string flipped = bytes;
+  flipped[flipped.size() / 2] ^= 0x55;
+  write_file_atomic(package, flipped);
+  EXPECT_THROW(load_asset(package), InputError);
+  AssetPacking bad;
+  bad.normal_bits = 20;
+  EXPECT_THROW(save_web_package(package, a, bad), ConfigError);
 }
 
 

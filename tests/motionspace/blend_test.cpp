@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <numbers>
 #include <vector>
 
@@ -144,6 +145,42 @@ TEST(Blend, HybridInterpolatesReferencesAndIsContinuous) {
   blend_hybrid(line, 0.0, std::vector<float>{0.25f, 0.75f}, &out2);
   EXPECT_LT(test::max_vertex_distance(to_matrix(out2), 0.5 * (special + pose(m, 1, 0))),
             kHalfTolerance);
+}
+
+// Decoded displacements (the web build's path): the sources point at the float twins of the
+// halves, and the sum is the generic kernel's on the halves to the bit.
+TEST(Blend, DecodedDisplacementsGiveTheSameSum) {
+  const test::TestMesh m = test::make_tube(9, 7);
+  BlendSpace space = make_space(m, 3, 3);
+  const int r = add_reference(&space, std::vector<double>{1.0 / 3, 1.0 / 3, 1.0 / 3});
+  const Eigen::Matrix3Xd special = test::bend_tube(m.positions, -90 * kDeg);
+  for (int f = 0; f < 3; ++f) set_frame(&space, r, f, test::to_vec3f(special));
+  space.cells = {{r, 0, 1}, {r, 1, 2}, {r, 2, 0}};
+  ASSERT_NO_THROW(space.check());
+  BlendSources halves;
+  hybrid_blend_sources(space, 0.3, std::vector<float>{0.5f, 0.3f, 0.2f}, &halves);
+  ASSERT_GT(halves.displacement_count, 0);
+  EXPECT_FALSE(halves.decoded());
+
+  decode_displacements(&space);
+  ASSERT_EQ(space.displacement_floats.size(), space.displacements.size());
+  for (std::size_t i = 0; i < space.displacements.size(); ++i) {
+    ASSERT_EQ(space.displacement_floats[i], half_to_float(space.displacements[i])) << i;
+  }
+  BlendSources floats;
+  hybrid_blend_sources(space, 0.3, std::vector<float>{0.5f, 0.3f, 0.2f}, &floats);
+  ASSERT_TRUE(floats.decoded());
+  for (int k = 0; k < floats.displacement_count; ++k) {
+    EXPECT_EQ(floats.displacement_floats[k], space.displacement_float(floats.displacement_sources[k]));
+  }
+  EXPECT_EQ(floats.read_bytes(10), halves.read_bytes(10) + 10 * 2 * halves.displacement_count);
+  const std::size_t n = space.frame_stride();
+  for (bool accumulate : {false, true}) {
+    std::vector<float> a(n, 0.25f), b(n, 0.25f);
+    portable_weighted_sum(halves, n, accumulate, a.data());
+    portable_weighted_sum(floats, n, accumulate, b.data());
+    EXPECT_EQ(std::memcmp(a.data(), b.data(), n * sizeof(float)), 0) << "accumulate " << accumulate;
+  }
 }
 
 // Quadratic cells: a reference at the midpoint of a cell edge is that cell's P2 node. On a
