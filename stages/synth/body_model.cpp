@@ -148,18 +148,27 @@ BodyModel make_body_model(double height, double build) {
   set("head", {0, 0, 1.57});
   const char* suffix[2] = {"_l", "_r"};
   const double upper_arm = 0.29, forearm = 0.25, hand = 0.185;
+  // A heavier build has broader shoulders: the shoulder moves out by as much as the chest's
+  // and the upper arm's radii grow, so the hanging arm keeps its clearance from the trunk
+  // (with the average build's shoulders a build of 1.3 walked with its upper arms 1-2 cm
+  // inside its waist). Nominal metres; 0 at the average build.
+  const double broader = (0.16 + 0.05) * (build - 1.0);
+  // Likewise the legs stand and step wider by as much as the thigh's radius grows, so the
+  // thighs and knees keep their clearance in a stride (at 1.3 they passed through each other
+  // in a fast walk).
+  const double leg_y = 0.09 + 0.088 * (build - 1.0);
   for (int i = 0; i < 2; ++i) {
     const std::string sfx = suffix[i];
     const double y = side[i];
-    const Vector3d shoulder(0, 0.175 * y, 1.43);
+    const Vector3d shoulder(0, (0.175 + broader) * y, 1.43);
     set(("clavicle" + sfx).c_str(), {0, 0.025 * y, 1.43});
     set(("upper_arm" + sfx).c_str(), shoulder);
     set(("forearm" + sfx).c_str(), shoulder + upper_arm * arm_dir[i]);
     set(("hand" + sfx).c_str(), shoulder + (upper_arm + forearm) * arm_dir[i]);
-    set(("thigh" + sfx).c_str(), {0, 0.09 * y, 0.92});
-    set(("shin" + sfx).c_str(), {0, 0.09 * y, 0.50});
-    set(("foot" + sfx).c_str(), {0, 0.09 * y, 0.085});
-    set(("toe" + sfx).c_str(), {0.13, 0.09 * y, 0.03});
+    set(("thigh" + sfx).c_str(), {0, leg_y * y, 0.92});
+    set(("shin" + sfx).c_str(), {0, leg_y * y, 0.50});
+    set(("foot" + sfx).c_str(), {0, leg_y * y, 0.085});
+    set(("toe" + sfx).c_str(), {0.13, leg_y * y, 0.03});
   }
 
   std::vector<std::pair<std::string, std::string>> joints;
@@ -191,7 +200,7 @@ BodyModel make_body_model(double height, double build) {
     const Vector3d& wrist = pos[static_cast<std::size_t>(J("hand" + sfx))];
     const Vector3d& d = arm_dir[i];
     prims.push_back(round_cone(J("clavicle" + sfx), P(-0.01, 0.03 * y, 1.405), 0.055 * g,
-                               P(-0.01, 0.165 * y, 1.42), 0.053 * g));
+                               P(-0.01, (0.165 + broader) * y, 1.42), 0.053 * g));
     prims.push_back(round_cone(J("upper_arm" + sfx), shoulder, 0.05 * g, elbow, 0.04 * g));
     prims.push_back(round_cone(J("forearm" + sfx), elbow, 0.04 * g, wrist, 0.027 * g));
     // The hand: flat, its width along x (palm towards the thigh), its thickness across.
@@ -206,18 +215,18 @@ BodyModel make_body_model(double height, double build) {
     const Vector3d hip = pos[static_cast<std::size_t>(J("thigh" + sfx))];
     const Vector3d knee = pos[static_cast<std::size_t>(J("shin" + sfx))];
     const Vector3d ankle = pos[static_cast<std::size_t>(J("foot" + sfx))];
-    prims.push_back(round_cone(J("thigh" + sfx), P(0, 0.09 * y, 0.95), 0.088 * g, knee, 0.056 * g));
+    prims.push_back(round_cone(J("thigh" + sfx), P(0, leg_y * y, 0.95), 0.088 * g, knee, 0.056 * g));
     prims.push_back(round_cone(J("shin" + sfx), knee, 0.053 * g, ankle, 0.035 * g));
-    prims.push_back(ellipsoid(J("shin" + sfx), P(-0.025, 0.09 * y, 0.37), Vector3d(0.048, 0.045, 0.11) * g));
+    prims.push_back(ellipsoid(J("shin" + sfx), P(-0.025, leg_y * y, 0.37), Vector3d(0.048, 0.045, 0.11) * g));
     // Feet rest on the floor: every sphere touches z = 0.
     const double rh = 0.045 * g_ext, rbf = 0.036 * g_ext, rt = 0.025 * g_ext;
-    prims.push_back(round_cone(J("foot" + sfx), Vector3d(-0.045 * s, 0.09 * y * s, rh), rh,
-                               Vector3d(0.125 * s, 0.09 * y * s, rbf), rbf));
-    prims.push_back(round_cone(J("toe" + sfx), Vector3d(0.125 * s, 0.09 * y * s, 0.033 * g_ext),
-                               0.033 * g_ext, Vector3d(0.2 * s, 0.09 * y * s, rt), rt));
+    prims.push_back(round_cone(J("foot" + sfx), Vector3d(-0.045 * s, leg_y * y * s, rh), rh,
+                               Vector3d(0.125 * s, leg_y * y * s, rbf), rbf));
+    prims.push_back(round_cone(J("toe" + sfx), Vector3d(0.125 * s, leg_y * y * s, 0.033 * g_ext),
+                               0.033 * g_ext, Vector3d(0.2 * s, leg_y * y * s, rt), rt));
     body.legs[static_cast<std::size_t>(i)] = {hip, ankle};
-    body.feet[static_cast<std::size_t>(i)] = {Vector3d(-0.09 * s, 0.09 * y * s, 0.04 * s),
-                                              Vector3d(0.225 * s, 0.09 * y * s, 0.04 * s)};
+    body.feet[static_cast<std::size_t>(i)] = {Vector3d(-0.09 * s, leg_y * y * s, 0.04 * s),
+                                              Vector3d(0.225 * s, leg_y * y * s, 0.04 * s)};
   }
   return body;
 }
