@@ -6,44 +6,53 @@
 
 #include <Eigen/SparseCholesky>
 #include <algorithm>
-#include <cstdint>
-#include <unordered_map>
 
 namespace fourd::align::detail {
 
 namespace {
 
 // The block pattern of the Gauss-Newton matrix: a 6x6 block per pair of nodes that share a
-// vertex or a graph edge. Fixed for the template, so the sparse Cholesky analysis is reused.
+// vertex or a graph edge. Fixed for the template, so the sparse Cholesky analysis is reused, and
+// so is the sparse matrix: its lower triangle (all the solver reads) is laid out once and every
+// step writes the blocks' values into it.
 class GraphSystem {
  public:
   // With `reverse_matches`, also the blocks the reverse matches need.
-  GraphSystem(const TemplateModel& model, bool reverse_matches) : model_(model) {
+  GraphSystem(const TemplateModel& model, bool reverse_matches) {
     const DeformationGraph& g = model.graph;
     nodes_ = static_cast<int>(g.node_vertex.size());
-    for (int j = 0; j < nodes_; ++j) block_id(j, j);
+    // Per node a, the nodes b >= a it shares a block with.
+    std::vector<std::vector<int>> rows(nodes_);
+    auto pair = [&](int a, int b) {
+      if (a >= 0 && b >= 0) rows[std::min(a, b)].push_back(std::max(a, b));
+    };
+    for (int j = 0; j < nodes_; ++j) pair(j, j);
     const int nv = static_cast<int>(model.rest.num_vertices()), k = g.influences;
     for (int v = 0; v < nv; ++v) {
       for (int a = 0; a < k; ++a) {
-        for (int b = 0; b < k; ++b) {
-          int na = g.influence_node[v * k + a], nb = g.influence_node[v * k + b];
-          if (na >= 0 && nb >= 0 && na <= nb) block_id(na, nb);
-        }
+        for (int b = a; b < k; ++b) pair(g.influence_node[v * k + a], g.influence_node[v * k + b]);
       }
     }
     // Reverse matches tie the nodes of a triangle's three vertices together.
     for (const Tri& t : reverse_matches ? model.rest.triangles : std::vector<Tri>{}) {
       for (int a = 0; a < 3 * k; ++a) {
-        for (int b = 0; b < 3 * k; ++b) {
-          const int na = g.influence_node[t[a / k] * k + a % k];
-          const int nb = g.influence_node[t[b / k] * k + b % k];
-          if (na >= 0 && nb >= 0 && na <= nb) block_id(na, nb);
+        for (int b = a; b < 3 * k; ++b) {
+          pair(g.influence_node[t[a / k] * k + a % k], g.influence_node[t[b / k] * k + b % k]);
         }
       }
     }
     for (int j = 0; j < nodes_; ++j) {
-      for (int n : g.node_neighbours[j]) block_id(std::min(j, n), std::max(j, n));
+      for (int n : g.node_neighbours[j]) pair(j, n);
     }
+    row_start_.assign(1, 0);
+    for (int a = 0; a < nodes_; ++a) {
+      std::sort(rows[a].begin(), rows[a].end());
+      rows[a].erase(std::unique(rows[a].begin(), rows[a].end()), rows[a].end());
+      for (int b : rows[a]) pairs_.emplace_back(a, b);
+      cols_.insert(cols_.end(), rows[a].begin(), rows[a].end());
+      row_start_.push_back(static_cast<int>(cols_.size()));
+    }
+    lay_out_matrix();
   }
 
   int unknowns() const { return 6 * nodes_; }
@@ -70,9 +79,9 @@ class GraphSystem {
   // parts.
   void add(Part& part, int a, int b, const Mat6& m) const {
     if (a <= b) {
-      part.blocks[ids_.at(key(a, b))] += m;
+      part.blocks[block(a, b)] += m;
     } else {
-      part.blocks[ids_.at(key(b, a))] += m.transpose();
+      part.blocks[block(b, a)] += m.transpose();
     }
   }
   void add(int a, int b, const Mat6& m) { add(parts_[0], a, b, m); }
@@ -87,40 +96,73 @@ class GraphSystem {
     }
   }
 
-  SparseMatrix matrix(double damping) const {
-    std::vector<Eigen::Triplet<double>> triplets;
-    triplets.reserve(pairs_.size() * 72);
+  // The lower triangle of the summed matrix, `damping` added to the diagonal.
+  const SparseMatrix& matrix(double damping) {
+    double* values = lower_.valuePtr();
     for (std::size_t i = 0; i < pairs_.size(); ++i) {
-      const auto [a, b] = pairs_[i];
       const Mat6& m = parts_[0].blocks[i];
+      const int* slot = &slots_[36 * i];
       for (int r = 0; r < 6; ++r) {
         for (int c = 0; c < 6; ++c) {
-          double value = m(r, c);
-          if (a == b && r == c) value += damping;
-          triplets.emplace_back(6 * a + r, 6 * b + c, value);
-          if (a != b) triplets.emplace_back(6 * b + c, 6 * a + r, value);
+          if (slot[6 * r + c] >= 0) values[slot[6 * r + c]] = m(r, c);
         }
       }
     }
-    SparseMatrix h(6 * nodes_, 6 * nodes_);
-    h.setFromTriplets(triplets.begin(), triplets.end());
-    return h;
+    for (int d = 0; d < 6 * nodes_; ++d) values[diagonal_[d]] += damping;
+    return lower_;
   }
   const Eigen::VectorXd& gradient() const { return parts_[0].gradient; }
 
  private:
-  std::uint64_t key(int a, int b) const { return static_cast<std::uint64_t>(a) * nodes_ + b; }
-  int block_id(int a, int b) {
-    auto [it, inserted] = ids_.try_emplace(key(a, b), static_cast<int>(pairs_.size()));
-    if (inserted) pairs_.emplace_back(a, b);
-    return it->second;
+  // The block of nodes a <= b.
+  int block(int a, int b) const {
+    const auto begin = cols_.begin() + row_start_[a], end = cols_.begin() + row_start_[a + 1];
+    return static_cast<int>(std::lower_bound(begin, end, b) - cols_.begin());
   }
 
-  const TemplateModel& model_;
+  // The lower triangle's pattern, and where each block entry (r, c) of H(a, b) lands in its
+  // values: H(6a + r, 6b + c) lies below the diagonal as (6b + c, 6a + r) when a < b, and is in
+  // the lower triangle itself for r >= c when a == b.
+  void lay_out_matrix() {
+    std::vector<Eigen::Triplet<double>> triplets;
+    triplets.reserve(pairs_.size() * 36);
+    for (const auto& [a, b] : pairs_) {
+      for (int r = 0; r < 6; ++r) {
+        for (int c = 0; c < 6; ++c) {
+          if (a < b) triplets.emplace_back(6 * b + c, 6 * a + r, 1.0);
+          if (a == b && r >= c) triplets.emplace_back(6 * a + r, 6 * a + c, 1.0);
+        }
+      }
+    }
+    lower_.resize(6 * nodes_, 6 * nodes_);
+    lower_.setFromTriplets(triplets.begin(), triplets.end());
+    lower_.makeCompressed();
+    auto where = [&](int row, int col) {
+      const int* begin = lower_.innerIndexPtr() + lower_.outerIndexPtr()[col];
+      const int* end = lower_.innerIndexPtr() + lower_.outerIndexPtr()[col + 1];
+      return static_cast<int>(std::lower_bound(begin, end, row) - lower_.innerIndexPtr());
+    };
+    slots_.assign(36 * pairs_.size(), -1);
+    for (std::size_t i = 0; i < pairs_.size(); ++i) {
+      const auto [a, b] = pairs_[i];
+      for (int r = 0; r < 6; ++r) {
+        for (int c = 0; c < 6; ++c) {
+          if (a < b) slots_[36 * i + 6 * r + c] = where(6 * b + c, 6 * a + r);
+          if (a == b && r >= c) slots_[36 * i + 6 * r + c] = where(6 * a + r, 6 * a + c);
+        }
+      }
+    }
+    diagonal_.resize(6 * nodes_);
+    for (int d = 0; d < 6 * nodes_; ++d) diagonal_[d] = where(d, d);
+  }
+
   int nodes_ = 0;
-  std::unordered_map<std::uint64_t, int> ids_;
-  std::vector<std::pair<int, int>> pairs_;
+  std::vector<int> row_start_, cols_;  // per node a, the nodes b >= a of its blocks, sorted
+  std::vector<std::pair<int, int>> pairs_;  // block i is pairs_[i] = (a, b), a <= b
   std::vector<Part> parts_;
+  SparseMatrix lower_;
+  std::vector<int> slots_;     // 36 per block: its entries' index in lower_'s values, or -1
+  std::vector<int> diagonal_;  // the diagonal's indices in lower_'s values
 };
 
 // The Jacobian of a deformed point with respect to one graph node's update (a rotation
@@ -258,7 +300,7 @@ bool graph_gauss_newton_step(const TemplateModel& model, const std::vector<Corre
     }
   }
 
-  SparseMatrix h = system.matrix(1e-6 * std::max(stiffness, 1e-3));
+  const SparseMatrix& h = system.matrix(1e-6 * std::max(stiffness, 1e-3));
   if (analyse) solver.analyzePattern(h);
   solver.factorize(h);
   if (solver.info() != Eigen::Success) return false;
