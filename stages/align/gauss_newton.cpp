@@ -231,9 +231,10 @@ bool graph_gauss_newton_step(const TemplateModel& model, const std::vector<Corre
                              Eigen::SimplicialLDLT<SparseMatrix>& solver, bool analyse,
                              DeformationState* state) {
   const DeformationGraph& g = model.graph;
-  const int nv = static_cast<int>(model.rest.num_vertices());
-  // Data weight per vertex: nodes / vertices, so that the balance with the regulariser does not
-  // depend on the template's resolution.
+  const std::vector<int>& data_vertices = model.data_vertices;
+  const int nv = static_cast<int>(data_vertices.size());
+  // Data weight per vertex: nodes / data vertices, so that the balance with the regulariser does
+  // not depend on the template's resolution.
   const double data_weight = static_cast<double>(g.node_vertex.size()) / nv;
   const double reverse_weight =
       reverse.empty() ? 0.0 : options.reverse_weight * data_weight * nv / reverse.size();
@@ -249,8 +250,8 @@ bool graph_gauss_newton_step(const TemplateModel& model, const std::vector<Corre
     for (std::size_t i = begin; i < end; ++i) {
       if (i < static_cast<std::size_t>(nv)) {
         // Data: point-to-plane plus a little point-to-point, with P = c (n n^T + mu I).
-        const int v = static_cast<int>(i);
-        const Correspondence& m = matches[v];
+        const int v = data_vertices[i];
+        const Correspondence& m = matches[i];
         if (m.weight <= 0) continue;
         const double one = 1.0;
         const int nodes = point_jacobian(model, *state, &v, &one, 1, &deformed, jac);

@@ -108,15 +108,21 @@ DeformationState register_pass(const TemplateModel& model, const DeformationStat
                                const std::vector<Landmark>& landmarks, int first_level = 0) {
   DeformationState state = start;
   std::vector<Vec3f> positions = deform_with_graph(model, state);
+  const std::vector<int>& data_vertices = model.data_vertices;
+  auto of_data = [&](const std::vector<Vec3f>& all) {
+    std::vector<Vec3f> out(data_vertices.size());
+    for (std::size_t i = 0; i < data_vertices.size(); ++i) out[i] = all[data_vertices[i]];
+    return out;
+  };
   if (options.rigid_iterations > 0) {
     const Eigen::Isometry3d motion =
-        rigid_icp(positions, vertex_normals(positions, model.rest.triangles), target,
-                  options.rigid_iterations, options.max_distance, options);
+        rigid_icp(of_data(positions), of_data(vertex_normals(positions, model.rest.triangles)),
+                  target, options.rigid_iterations, options.max_distance, options);
     apply_rigid(model, motion, &state);
   }
 
   const FrameSamples samples =
-      options.reverse_weight > 0 ? sample_frame(target, model.rest.num_vertices()) : FrameSamples{};
+      options.reverse_weight > 0 ? sample_frame(target, data_vertices.size()) : FrameSamples{};
   GraphGaussNewton solver(model, options.reverse_weight > 0);
   const int levels = static_cast<int>(options.stiffness.size());
   for (int level = std::min(first_level, levels - 1); level < levels; ++level) {
@@ -128,8 +134,8 @@ DeformationState register_pass(const TemplateModel& model, const DeformationStat
     for (int it = 0; it < options.iterations_per_level; ++it) {
       positions = deform_with_graph(model, state);
       const std::vector<Correspondence> matches = find_correspondences(
-          positions, vertex_normals(positions, model.rest.triangles), target, max_distance,
-          robust_scale, options);
+          of_data(positions), of_data(vertex_normals(positions, model.rest.triangles)), target,
+          max_distance, robust_scale, options);
       const std::vector<ReverseMatch> reverse =
           options.reverse_weight > 0
               ? find_reverse_correspondences(model, positions, samples, max_distance, robust_scale,

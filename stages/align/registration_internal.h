@@ -127,6 +127,14 @@ TipLandmarks tip_landmarks(const TemplateModel& model, const std::vector<Vec3f>&
 
 // ---- The deformation graph (deformation_graph.cpp) ------------------------------------------
 
+// Geodesic farthest-point sampling from vertex 0: each new sample is the vertex farthest from
+// all samples so far (min(count, vertices) of them, in that order). `dist` receives every
+// vertex's geodesic distance from its nearest sample, `owner` that sample's index (the geodesic
+// Voronoi partition).
+std::vector<int> farthest_point_samples(const Mesh& mesh, const std::vector<std::vector<int>>& rings,
+                                        int count, std::vector<double>* dist,
+                                        std::vector<int>* owner);
+
 // Geodesic farthest-point nodes, edges between touching Voronoi cells, K blended influences
 // per vertex (Sumner et al. 2007).
 DeformationGraph build_graph(const Mesh& mesh, const std::vector<std::vector<int>>& rings,
@@ -155,9 +163,9 @@ class GraphGaussNewton {
   GraphGaussNewton(const GraphGaussNewton&) = delete;
   GraphGaussNewton& operator=(const GraphGaussNewton&) = delete;
 
-  // One step of the graph energy (data both ways, landmarks, ARAP regulariser of weight
-  // `stiffness`); updates `state`'s rotations and translations. False when the system could not
-  // be factorised or solved.
+  // One step of the graph energy (data both ways: `matches` of model.data_vertices, in their
+  // order; landmarks; ARAP regulariser of weight `stiffness`); updates `state`'s rotations and
+  // translations. False when the system could not be factorised or solved.
   bool step(const std::vector<Correspondence>& matches, const std::vector<ReverseMatch>& reverse,
             const std::vector<Landmark>& landmarks, double stiffness,
             const RegistrationOptions& options, DeformationState* state);
