@@ -35,6 +35,7 @@ bool point_query_callback(RTCPointQueryFunctionArguments* args) {
   auto* state = static_cast<QueryState*>(args->userPtr);
   const unsigned prim = args->primID;
   const Vec3f& n = (*state->face_normals)[prim];
+  if (n.isZero()) return false;  // degenerated since the query was made (move_vertices)
   if (state->use_normal && n.dot(state->normal) < state->min_cos) return false;
   const Tri& t = (*state->triangles)[prim];
   Vec3f bary;
@@ -114,7 +115,18 @@ struct SurfaceQuery::Impl {
   }
 };
 
-SurfaceQuery::SurfaceQuery(const Mesh& mesh) : impl_(std::make_unique<Impl>()) {
+namespace {
+
+// The unit normal of triangle t over `positions`; zero when it is degenerate.
+Vec3f face_normal(const std::vector<Vec3f>& positions, const Tri& t) {
+  const Vec3f n = (positions[t[1]] - positions[t[0]]).cross(positions[t[2]] - positions[t[0]]);
+  const float len = n.norm();
+  return len > 0 ? Vec3f(n / len) : Vec3f::Zero();
+}
+
+}  // namespace
+
+SurfaceQuery::SurfaceQuery(const Mesh& mesh, bool deformable) : impl_(std::make_unique<Impl>()) {
   Impl& s = *impl_;
   s.positions = mesh.positions;
   s.confidence = mesh.confidence;
@@ -122,15 +134,29 @@ SurfaceQuery::SurfaceQuery(const Mesh& mesh) : impl_(std::make_unique<Impl>()) {
   s.face_normals.reserve(mesh.triangles.size());
   for (std::size_t f = 0; f < mesh.triangles.size(); ++f) {
     const Tri& t = mesh.triangles[f];
-    Vec3f n = (s.positions[t[1]] - s.positions[t[0]]).cross(s.positions[t[2]] - s.positions[t[0]]);
-    float len = n.norm();
-    if (!(len > 0)) continue;
+    const Vec3f n = face_normal(s.positions, t);
+    if (n.isZero()) continue;
     s.triangles.push_back(t);
     for (int k = 0; k < 3; ++k) s.bounds.extend(s.positions[t[k]]);
-    s.face_normals.push_back(n / len);
+    s.face_normals.push_back(n);
     s.source.push_back(static_cast<int>(f));
   }
-  s.scene = make_embree_scene(s.positions, s.triangles, RTC_BUILD_QUALITY_MEDIUM);
+  s.scene = make_embree_scene(s.positions, s.triangles, RTC_BUILD_QUALITY_MEDIUM, deformable);
+}
+
+void SurfaceQuery::move_vertices(const std::vector<Vec3f>& positions) {
+  Impl& s = *impl_;
+  if (positions.size() != s.positions.size()) {
+    throw Error("SurfaceQuery::move_vertices: the vertex count changed");
+  }
+  s.positions = positions;
+  s.bounds.setEmpty();
+  for (std::size_t f = 0; f < s.triangles.size(); ++f) {
+    const Tri& t = s.triangles[f];
+    s.face_normals[f] = face_normal(s.positions, t);
+    for (int k = 0; k < 3; ++k) s.bounds.extend(s.positions[t[k]]);
+  }
+  if (!s.triangles.empty()) update_embree_vertices(s.scene, s.positions);
 }
 
 SurfaceQuery::~SurfaceQuery() = default;

@@ -58,6 +58,7 @@ void refine_vertices(const TemplateModel& model, const SurfaceQuery& target,
   const double anchor = 1e-4;
   const FrameSamples samples =
       options.reverse_weight > 0 ? sample_frame(target, model.rest.num_vertices()) : FrameSamples{};
+  FittedSurface fitted;
   for (int it = 0; it < options.refine_iterations; ++it) {
     const std::vector<Vec3f> normals = vertex_normals(*positions, model.rest.triangles);
     const std::vector<Correspondence> matches =
@@ -71,7 +72,8 @@ void refine_vertices(const TemplateModel& model, const SurfaceQuery& target,
       // combination): c |sum_k b_k x_k - q|^2 couples the triangle's vertices, which the
       // Laplacian's pattern already does.
       const std::vector<ReverseMatch> reverse = find_reverse_correspondences(
-          model, *positions, samples, options.final_max_distance, options.robust_scale, options);
+          model, *positions, samples, options.final_max_distance, options.robust_scale, options,
+          &fitted);
       const double scale = options.refine_weight * options.reverse_weight * nv / reverse.size();
       for (const ReverseMatch& m : reverse) {
         if (m.weight <= 0) continue;

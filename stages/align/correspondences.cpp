@@ -55,12 +55,23 @@ FrameSamples sample_frame(const SurfaceQuery& target, std::size_t count) {
   return samples;
 }
 
+const SurfaceQuery& FittedSurface::at(const TemplateModel& model,
+                                      const std::vector<Vec3f>& positions) {
+  if (query_) {
+    query_->move_vertices(positions);
+  } else {
+    query_ = std::make_unique<SurfaceQuery>(fitted_mesh(model, positions), true);
+  }
+  return *query_;
+}
+
 std::vector<ReverseMatch> find_reverse_correspondences(const TemplateModel& model,
                                                        const std::vector<Vec3f>& positions,
                                                        const FrameSamples& samples,
                                                        double max_distance, double robust_scale,
-                                                       const RegistrationOptions& options) {
-  const SurfaceQuery query(fitted_mesh(model, positions));
+                                                       const RegistrationOptions& options,
+                                                       FittedSurface* fitted) {
+  const SurfaceQuery& query = fitted->at(model, positions);
   const float min_cos = cos_degrees(options.normal_angle);
   std::vector<ReverseMatch> out(samples.points.size());
   tbb::parallel_for(std::size_t{0}, samples.points.size(), [&](std::size_t i) {

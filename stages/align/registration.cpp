@@ -124,6 +124,7 @@ DeformationState register_pass(const TemplateModel& model, const DeformationStat
   const FrameSamples samples =
       options.reverse_weight > 0 ? sample_frame(target, data_vertices.size()) : FrameSamples{};
   GraphGaussNewton solver(model, options.reverse_weight > 0);
+  FittedSurface fitted;
   const int levels = static_cast<int>(options.stiffness.size());
   for (int level = std::min(first_level, levels - 1); level < levels; ++level) {
     // The matching distance shrinks geometrically from max_distance to final_max_distance.
@@ -139,7 +140,7 @@ DeformationState register_pass(const TemplateModel& model, const DeformationStat
       const std::vector<ReverseMatch> reverse =
           options.reverse_weight > 0
               ? find_reverse_correspondences(model, positions, samples, max_distance, robust_scale,
-                                             options)
+                                             options, &fitted)
               : std::vector<ReverseMatch>{};
       const bool coarse = level < options.landmark_levels;
       if (!solver.step(matches, reverse, coarse ? landmarks : std::vector<Landmark>{},

@@ -96,13 +96,26 @@ struct FrameSamples {
 // About `count` frame vertices spread evenly, with their normals and confidence.
 FrameSamples sample_frame(const SurfaceQuery& target, std::size_t count);
 
-// Each sample's closest compatible point of the template deformed to `positions`, robustly
-// weighted.
+// The deformed template as a surface to match frame points to, kept over the iterations of a
+// fit: the first call builds its search tree, the later ones move its vertices and refit the
+// tree (the same answers, at a fraction of a new tree's cost).
+class FittedSurface {
+ public:
+  // The template deformed to `positions`.
+  const SurfaceQuery& at(const TemplateModel& model, const std::vector<Vec3f>& positions);
+
+ private:
+  std::unique_ptr<SurfaceQuery> query_;
+};
+
+// Each sample's closest compatible point of the template deformed to `positions` (`fitted`
+// holds it), robustly weighted.
 std::vector<ReverseMatch> find_reverse_correspondences(const TemplateModel& model,
                                                        const std::vector<Vec3f>& positions,
                                                        const FrameSamples& samples,
                                                        double max_distance, double robust_scale,
-                                                       const RegistrationOptions& options);
+                                                       const RegistrationOptions& options,
+                                                       FittedSurface* fitted);
 
 // The index of the position nearest `p` (-1 when there is none).
 int nearest_vertex(const std::vector<Vec3f>& positions, const Vec3f& p);
