@@ -33,12 +33,16 @@ class GraphSystem {
         for (int b = a; b < k; ++b) pair(g.influence_node[v * k + a], g.influence_node[v * k + b]);
       }
     }
-    // Reverse matches tie the nodes of a triangle's three vertices together.
+    // Reverse matches tie the nodes of a triangle's three vertices together (each node once:
+    // the three mostly share theirs).
+    std::vector<int> tied;
     for (const Tri& t : reverse_matches ? model.rest.triangles : std::vector<Tri>{}) {
-      for (int a = 0; a < 3 * k; ++a) {
-        for (int b = a; b < 3 * k; ++b) {
-          pair(g.influence_node[t[a / k] * k + a % k], g.influence_node[t[b / k] * k + b % k]);
-        }
+      tied.clear();
+      for (int a = 0; a < 3 * k; ++a) tied.push_back(g.influence_node[t[a / k] * k + a % k]);
+      std::sort(tied.begin(), tied.end());
+      tied.erase(std::unique(tied.begin(), tied.end()), tied.end());
+      for (std::size_t a = 0; a < tied.size(); ++a) {
+        for (std::size_t b = a; b < tied.size(); ++b) pair(tied[a], tied[b]);
       }
     }
     for (int j = 0; j < nodes_; ++j) {
