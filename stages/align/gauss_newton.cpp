@@ -2,9 +2,10 @@
 // landmarks and the as-rigid-as-possible regulariser summed into a block-sparse system.
 #include "stages/align/registration_internal.h"
 
+#include "stages/align/block_cholesky.h"
+
 #include <tbb/parallel_for.h>
 
-#include <Eigen/SparseCholesky>
 #include <algorithm>
 
 namespace fourd::align::detail {
@@ -12,9 +13,8 @@ namespace fourd::align::detail {
 namespace {
 
 // The block pattern of the Gauss-Newton matrix: a 6x6 block per pair of nodes that share a
-// vertex or a graph edge. Fixed for the template, so the sparse Cholesky analysis is reused, and
-// so is the sparse matrix: its lower triangle (all the solver reads) is laid out once and every
-// step writes the blocks' values into it.
+// vertex or a graph edge. Fixed for the template, so the block Cholesky's ordering and pattern
+// are computed once and every step factorises the blocks' values.
 class GraphSystem {
  public:
   // With `reverse_matches`, also the blocks the reverse matches need.
@@ -56,7 +56,7 @@ class GraphSystem {
       cols_.insert(cols_.end(), rows[a].begin(), rows[a].end());
       row_start_.push_back(static_cast<int>(cols_.size()));
     }
-    lay_out_matrix();
+    cholesky_ = std::make_unique<BlockCholesky>(nodes_, pairs_);
   }
 
   int unknowns() const { return 6 * nodes_; }
@@ -100,21 +100,11 @@ class GraphSystem {
     }
   }
 
-  // The lower triangle of the summed matrix, `damping` added to the diagonal.
-  const SparseMatrix& matrix(double damping) {
-    double* values = lower_.valuePtr();
-    for (std::size_t i = 0; i < pairs_.size(); ++i) {
-      const Mat6& m = parts_[0].blocks[i];
-      const int* slot = &slots_[36 * i];
-      for (int r = 0; r < 6; ++r) {
-        for (int c = 0; c < 6; ++c) {
-          if (slot[6 * r + c] >= 0) values[slot[6 * r + c]] = m(r, c);
-        }
-      }
-    }
-    for (int d = 0; d < 6 * nodes_; ++d) values[diagonal_[d]] += damping;
-    return lower_;
-  }
+  // Factorises the summed matrix with `damping` added to its diagonal; false when it is not
+  // positive definite.
+  bool factorize(double damping) { return cholesky_->factorize(parts_[0].blocks, damping); }
+  // The solution of the factorised system with right-hand side b.
+  Eigen::VectorXd solve(const Eigen::VectorXd& b) const { return cholesky_->solve(b); }
   const Eigen::VectorXd& gradient() const { return parts_[0].gradient; }
 
  private:
@@ -124,49 +114,11 @@ class GraphSystem {
     return static_cast<int>(std::lower_bound(begin, end, b) - cols_.begin());
   }
 
-  // The lower triangle's pattern, and where each block entry (r, c) of H(a, b) lands in its
-  // values: H(6a + r, 6b + c) lies below the diagonal as (6b + c, 6a + r) when a < b, and is in
-  // the lower triangle itself for r >= c when a == b.
-  void lay_out_matrix() {
-    std::vector<Eigen::Triplet<double>> triplets;
-    triplets.reserve(pairs_.size() * 36);
-    for (const auto& [a, b] : pairs_) {
-      for (int r = 0; r < 6; ++r) {
-        for (int c = 0; c < 6; ++c) {
-          if (a < b) triplets.emplace_back(6 * b + c, 6 * a + r, 1.0);
-          if (a == b && r >= c) triplets.emplace_back(6 * a + r, 6 * a + c, 1.0);
-        }
-      }
-    }
-    lower_.resize(6 * nodes_, 6 * nodes_);
-    lower_.setFromTriplets(triplets.begin(), triplets.end());
-    lower_.makeCompressed();
-    auto where = [&](int row, int col) {
-      const int* begin = lower_.innerIndexPtr() + lower_.outerIndexPtr()[col];
-      const int* end = lower_.innerIndexPtr() + lower_.outerIndexPtr()[col + 1];
-      return static_cast<int>(std::lower_bound(begin, end, row) - lower_.innerIndexPtr());
-    };
-    slots_.assign(36 * pairs_.size(), -1);
-    for (std::size_t i = 0; i < pairs_.size(); ++i) {
-      const auto [a, b] = pairs_[i];
-      for (int r = 0; r < 6; ++r) {
-        for (int c = 0; c < 6; ++c) {
-          if (a < b) slots_[36 * i + 6 * r + c] = where(6 * b + c, 6 * a + r);
-          if (a == b && r >= c) slots_[36 * i + 6 * r + c] = where(6 * a + r, 6 * a + c);
-        }
-      }
-    }
-    diagonal_.resize(6 * nodes_);
-    for (int d = 0; d < 6 * nodes_; ++d) diagonal_[d] = where(d, d);
-  }
-
   int nodes_ = 0;
   std::vector<int> row_start_, cols_;  // per node a, the nodes b >= a of its blocks, sorted
   std::vector<std::pair<int, int>> pairs_;  // block i is pairs_[i] = (a, b), a <= b
   std::vector<Part> parts_;
-  SparseMatrix lower_;
-  std::vector<int> slots_;     // 36 per block: its entries' index in lower_'s values, or -1
-  std::vector<int> diagonal_;  // the diagonal's indices in lower_'s values
+  std::unique_ptr<BlockCholesky> cholesky_;
 };
 
 // The Jacobian of a deformed point with respect to one graph node's update (a rotation
@@ -232,7 +184,6 @@ bool graph_gauss_newton_step(const TemplateModel& model, const std::vector<Corre
                              const std::vector<ReverseMatch>& reverse,
                              const std::vector<Landmark>& landmarks, double stiffness,
                              const RegistrationOptions& options, GraphSystem& system,
-                             Eigen::SimplicialLDLT<SparseMatrix>& solver, bool analyse,
                              DeformationState* state) {
   const DeformationGraph& g = model.graph;
   const std::vector<int>& data_vertices = model.data_vertices;
@@ -305,12 +256,9 @@ bool graph_gauss_newton_step(const TemplateModel& model, const std::vector<Corre
     }
   }
 
-  const SparseMatrix& h = system.matrix(1e-6 * std::max(stiffness, 1e-3));
-  if (analyse) solver.analyzePattern(h);
-  solver.factorize(h);
-  if (solver.info() != Eigen::Success) return false;
-  const Eigen::VectorXd delta = solver.solve(-system.gradient());
-  if (solver.info() != Eigen::Success || !delta.allFinite()) return false;
+  if (!system.factorize(1e-6 * std::max(stiffness, 1e-3))) return false;
+  const Eigen::VectorXd delta = system.solve(-system.gradient());
+  if (!delta.allFinite()) return false;
   for (std::size_t j = 0; j < g.node_vertex.size(); ++j) {
     state->rotation[j] = nearest_rotation(rotation_from_vector(delta.segment<3>(6 * j)) * state->rotation[j]);
     state->translation[j] += delta.segment<3>(6 * j + 3);
@@ -324,8 +272,6 @@ struct GraphGaussNewton::Impl {
   Impl(const TemplateModel& model, bool reverse_matches) : model(model), system(model, reverse_matches) {}
   const TemplateModel& model;
   GraphSystem system;
-  Eigen::SimplicialLDLT<SparseMatrix> solver;
-  bool analysed = false;
 };
 
 GraphGaussNewton::GraphGaussNewton(const TemplateModel& model, bool reverse_matches)
@@ -337,11 +283,8 @@ bool GraphGaussNewton::step(const std::vector<Correspondence>& matches,
                             const std::vector<ReverseMatch>& reverse,
                             const std::vector<Landmark>& landmarks, double stiffness,
                             const RegistrationOptions& options, DeformationState* state) {
-  const bool solved = graph_gauss_newton_step(impl_->model, matches, reverse, landmarks, stiffness,
-                                              options, impl_->system, impl_->solver,
-                                              !impl_->analysed, state);
-  impl_->analysed = true;
-  return solved;
+  return graph_gauss_newton_step(impl_->model, matches, reverse, landmarks, stiffness, options,
+                                 impl_->system, state);
 }
 
 }  // namespace fourd::align::detail

@@ -12,8 +12,8 @@
 //     onto frame surface it has not reached yet (a limb that moved far) - and
 //     as-rigid-as-possible graph terms, with the regulariser relaxed level by level and softened
 //     in the template's concave creases (armpits, crotch: where parts of the body meet and skin
-//     stretches as the joint opens); the sparse Cholesky's ordering and
-//     symbolic analysis are computed once and reused by every iteration;
+//     stretches as the joint opens); the sparse (6x6-block) Cholesky's ordering
+//     and factor pattern are computed once and reused by every iteration;
 //  3. a vertex-level as-rigid-as-possible refinement (Sorkine & Alexa 2007) towards the
 //     surface (matched both ways too), regularised against the template's own shape, so detail never accumulates
 //     errors along the tree.

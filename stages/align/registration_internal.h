@@ -166,8 +166,8 @@ void soften_creases(const RegistrationOptions& options, TemplateModel* model);
 // ---- Gauss-Newton on the graph (gauss_newton.cpp) ---------------------------------------------
 
 // The graph energy's Gauss-Newton solver for one registration pass: the matrix's block pattern
-// and the sparse Cholesky's ordering and symbolic analysis are computed once, at the first
-// step, and reused by every later one.
+// and the block Cholesky's ordering and factor pattern (block_cholesky.h) are computed once
+// and reused by every step.
 class GraphGaussNewton {
  public:
   // With `reverse_matches`, the pattern also holds the blocks the reverse matches need.
