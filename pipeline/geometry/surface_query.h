@@ -31,9 +31,12 @@ class SurfaceQuery {
   SurfaceQuery& operator=(const SurfaceQuery&) = delete;
 
   // Closest surface point within `max_distance` of `p`. With a non-zero `normal`, only
-  // triangles whose unit normal n satisfies n . normal >= min_cos count. Thread-safe.
+  // triangles whose unit normal n satisfies n . normal >= min_cos count. `near_triangle` (an
+  // input triangle, e.g. the answer for where p was before it moved a little; -1: none) only
+  // makes the search faster: when it counts, the answer is no farther than it, and the search
+  // starts at its distance. Thread-safe.
   SurfaceHit closest(const Vec3f& p, float max_distance, const Vec3f& normal = Vec3f::Zero(),
-                     float min_cos = -1.0f) const;
+                     float min_cos = -1.0f, int near_triangle = -1) const;
 
   // Moves the vertices (as many as the mesh's; the same triangles): the same answers as a new
   // query of the moved mesh, but for a deformable query at the cost of refitting the search

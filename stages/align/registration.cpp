@@ -51,10 +51,11 @@ Eigen::Isometry3d rigid_icp(const std::vector<Vec3f>& points, const std::vector<
                             const RegistrationOptions& options) {
   Eigen::Isometry3d total = Eigen::Isometry3d::Identity();
   std::vector<Vec3f> current = points, current_normals = normals;
+  std::vector<Correspondence> matches;
   for (int it = 0; it < iterations; ++it) {
-    const std::vector<Correspondence> matches =
-        find_correspondences(current, current_normals, target, max_distance,
-                             std::max(options.robust_scale, max_distance / 3), options);
+    matches = find_correspondences(current, current_normals, target, max_distance,
+                                   std::max(options.robust_scale, max_distance / 3), options,
+                                   it > 0 ? &matches : nullptr);
     Vec3d centroid = Vec3d::Zero();
     double weight_sum = 0;
     int matched = 0;
@@ -125,6 +126,9 @@ DeformationState register_pass(const TemplateModel& model, const DeformationStat
       options.reverse_weight > 0 ? sample_frame(target, data_vertices.size()) : FrameSamples{};
   GraphGaussNewton solver(model, options.reverse_weight > 0);
   FittedSurface fitted;
+  // The latest matches both ways: the next search starts from them.
+  std::vector<Correspondence> matches;
+  std::vector<ReverseMatch> reverse;
   const int levels = static_cast<int>(options.stiffness.size());
   for (int level = std::min(first_level, levels - 1); level < levels; ++level) {
     // The matching distance shrinks geometrically from max_distance to final_max_distance.
@@ -134,14 +138,15 @@ DeformationState register_pass(const TemplateModel& model, const DeformationStat
     const double robust_scale = std::max(options.robust_scale, max_distance / 3);
     for (int it = 0; it < options.iterations_per_level; ++it) {
       positions = deform_with_graph(model, state);
-      const std::vector<Correspondence> matches = find_correspondences(
-          of_data(positions), of_data(vertex_normals(positions, model.rest.triangles)), target,
-          max_distance, robust_scale, options);
-      const std::vector<ReverseMatch> reverse =
-          options.reverse_weight > 0
-              ? find_reverse_correspondences(model, positions, samples, max_distance, robust_scale,
-                                             options, &fitted)
-              : std::vector<ReverseMatch>{};
+      matches = find_correspondences(of_data(positions),
+                                     of_data(vertex_normals(positions, model.rest.triangles)),
+                                     target, max_distance, robust_scale, options,
+                                     matches.empty() ? nullptr : &matches);
+      if (options.reverse_weight > 0) {
+        reverse = find_reverse_correspondences(model, positions, samples, max_distance,
+                                               robust_scale, options, &fitted,
+                                               reverse.empty() ? nullptr : &reverse);
+      }
       const bool coarse = level < options.landmark_levels;
       if (!solver.step(matches, reverse, coarse ? landmarks : std::vector<Landmark>{},
                        options.stiffness[level], options, &state)) {

@@ -64,14 +64,17 @@ struct Correspondence {
   Vec3d point = Vec3d::Zero();
   Vec3d normal = Vec3d::Zero();
   double weight = 0;  // 0: no match
+  int triangle = -1;  // the frame triangle `point` is on
 };
 
-// Closest compatible surface points of every vertex, robustly weighted.
+// Closest compatible surface points of every vertex, robustly weighted. `previous` (the same
+// points' matches before they moved, or null) only speeds the search up.
 std::vector<Correspondence> find_correspondences(const std::vector<Vec3f>& positions,
                                                  const std::vector<Vec3f>& normals,
                                                  const SurfaceQuery& target, double max_distance,
                                                  double robust_scale,
-                                                 const RegistrationOptions& options);
+                                                 const RegistrationOptions& options,
+                                                 const std::vector<Correspondence>* previous = nullptr);
 
 // A frame point matched to the closest point of the deformed template (a barycentric point of
 // one template triangle). The forward matches only pull the template onto surface it is
@@ -83,6 +86,7 @@ struct ReverseMatch {
   Vec3d point = Vec3d::Zero();    // the frame point
   Vec3d normal = Vec3d::Zero();   // the frame's unit normal there
   double weight = 0;              // 0: no match
+  int face = -1;                  // the template triangle (index)
 };
 
 // The frame points the reverse matches start from: about one per template vertex, spread
@@ -109,13 +113,12 @@ class FittedSurface {
 };
 
 // Each sample's closest compatible point of the template deformed to `positions` (`fitted`
-// holds it), robustly weighted.
-std::vector<ReverseMatch> find_reverse_correspondences(const TemplateModel& model,
-                                                       const std::vector<Vec3f>& positions,
-                                                       const FrameSamples& samples,
-                                                       double max_distance, double robust_scale,
-                                                       const RegistrationOptions& options,
-                                                       FittedSurface* fitted);
+// holds it), robustly weighted. `previous` (the samples' matches to the template as it was
+// before, or null) only speeds the search up.
+std::vector<ReverseMatch> find_reverse_correspondences(
+    const TemplateModel& model, const std::vector<Vec3f>& positions, const FrameSamples& samples,
+    double max_distance, double robust_scale, const RegistrationOptions& options,
+    FittedSurface* fitted, const std::vector<ReverseMatch>* previous = nullptr);
 
 // The index of the position nearest `p` (-1 when there is none).
 int nearest_vertex(const std::vector<Vec3f>& positions, const Vec3f& p);

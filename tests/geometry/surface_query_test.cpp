@@ -63,6 +63,36 @@ TEST(SurfaceQuery, MovedVerticesAnswerAsANewQueryOfTheMovedMesh) {
   EXPECT_EQ(deformable.positions(), moved.positions);
 }
 
+// A near triangle only speeds the search: with the answer for a point nearby, with any
+// triangle (near or far, facing any way), or with none, the answer is as close.
+TEST(SurfaceQuery, ANearTriangleGivesTheSameAnswer) {
+  Mesh mesh = test::make_icosphere(3, 0.5f);
+  mesh.positions = bent(mesh.positions);
+  const SurfaceQuery query(mesh);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> coord(-0.9f, 0.9f), step(-0.01f, 0.01f);
+  std::uniform_int_distribution<int> any(-1, static_cast<int>(mesh.triangles.size()) - 1);
+  int hinted = 0;
+  for (int i = 0; i < 2000; ++i) {
+    const Vec3f p(coord(rng), coord(rng), coord(rng));
+    const Vec3f normal = Vec3f(coord(rng), coord(rng), coord(rng)).normalized();
+    for (const float min_cos : {-1.0f, 0.5f}) {
+      const SurfaceHit plain = query.closest(p, 0.5f, normal, min_cos);
+      const SurfaceHit before =
+          query.closest(p + Vec3f(step(rng), step(rng), step(rng)), 0.5f, normal, min_cos);
+      for (const int near : {before.found ? before.triangle : -1, any(rng)}) {
+        const SurfaceHit hit = query.closest(p, 0.5f, normal, min_cos, near);
+        ASSERT_EQ(hit.found, plain.found) << "query " << i << " near " << near;
+        if (!hit.found) continue;
+        hinted += near >= 0;
+        EXPECT_NEAR(hit.distance, plain.distance, 1e-6f) << "query " << i << " near " << near;
+        EXPECT_NEAR((hit.point - p).norm(), hit.distance, 1e-6f);
+      }
+    }
+  }
+  EXPECT_GT(hinted, 3000);
+}
+
 TEST(SurfaceQuery, ATriangleThatDegeneratesIsPassedOver) {
   const Mesh sphere = test::make_icosphere(2, 0.5f);
   SurfaceQuery query(sphere, true);
