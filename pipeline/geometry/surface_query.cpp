@@ -35,6 +35,7 @@ bool point_query_callback(RTCPointQueryFunctionArguments* args) {
   auto* state = static_cast<QueryState*>(args->userPtr);
   const unsigned prim = args->primID;
   const Vec3f& n = (*state->face_normals)[prim];
+  if (n.isZero()) return false;  // degenerated since the query was made (move_vertices)
   if (state->use_normal && n.dot(state->normal) < state->min_cos) return false;
   const Tri& t = (*state->triangles)[prim];
   Vec3f bary;
@@ -106,6 +107,7 @@ struct SurfaceQuery::Impl {
   std::vector<Tri> triangles;  // the non-degenerate ones
   std::vector<Vec3f> face_normals;
   std::vector<int> source;  // index of each kept triangle in the input mesh
+  std::vector<int> kept;    // per input triangle, its index among the kept ones (-1: not kept)
   std::vector<float> confidence;
   Eigen::AlignedBox3f bounds;  // of the kept triangles' vertices
   RTCScene scene = nullptr;
@@ -114,7 +116,18 @@ struct SurfaceQuery::Impl {
   }
 };
 
-SurfaceQuery::SurfaceQuery(const Mesh& mesh) : impl_(std::make_unique<Impl>()) {
+namespace {
+
+// The unit normal of triangle t over `positions`; zero when it is degenerate.
+Vec3f face_normal(const std::vector<Vec3f>& positions, const Tri& t) {
+  const Vec3f n = (positions[t[1]] - positions[t[0]]).cross(positions[t[2]] - positions[t[0]]);
+  const float len = n.norm();
+  return len > 0 ? Vec3f(n / len) : Vec3f::Zero();
+}
+
+}  // namespace
+
+SurfaceQuery::SurfaceQuery(const Mesh& mesh, bool deformable) : impl_(std::make_unique<Impl>()) {
   Impl& s = *impl_;
   s.positions = mesh.positions;
   s.confidence = mesh.confidence;
@@ -122,25 +135,71 @@ SurfaceQuery::SurfaceQuery(const Mesh& mesh) : impl_(std::make_unique<Impl>()) {
   s.face_normals.reserve(mesh.triangles.size());
   for (std::size_t f = 0; f < mesh.triangles.size(); ++f) {
     const Tri& t = mesh.triangles[f];
-    Vec3f n = (s.positions[t[1]] - s.positions[t[0]]).cross(s.positions[t[2]] - s.positions[t[0]]);
-    float len = n.norm();
-    if (!(len > 0)) continue;
+    const Vec3f n = face_normal(s.positions, t);
+    if (n.isZero()) continue;
     s.triangles.push_back(t);
     for (int k = 0; k < 3; ++k) s.bounds.extend(s.positions[t[k]]);
-    s.face_normals.push_back(n / len);
+    s.face_normals.push_back(n);
     s.source.push_back(static_cast<int>(f));
   }
-  s.scene = make_embree_scene(s.positions, s.triangles, RTC_BUILD_QUALITY_MEDIUM);
+  s.kept.assign(mesh.triangles.size(), -1);
+  for (std::size_t k = 0; k < s.source.size(); ++k) s.kept[s.source[k]] = static_cast<int>(k);
+  s.scene = make_embree_scene(s.positions, s.triangles, RTC_BUILD_QUALITY_MEDIUM, deformable);
+}
+
+void SurfaceQuery::move_vertices(const std::vector<Vec3f>& positions) {
+  Impl& s = *impl_;
+  if (positions.size() != s.positions.size()) {
+    throw Error("SurfaceQuery::move_vertices: the vertex count changed");
+  }
+  s.positions = positions;
+  s.bounds.setEmpty();
+  for (std::size_t f = 0; f < s.triangles.size(); ++f) {
+    const Tri& t = s.triangles[f];
+    s.face_normals[f] = face_normal(s.positions, t);
+    for (int k = 0; k < 3; ++k) s.bounds.extend(s.positions[t[k]]);
+  }
+  if (!s.triangles.empty()) update_embree_vertices(s.scene, s.positions);
 }
 
 SurfaceQuery::~SurfaceQuery() = default;
 
 SurfaceHit SurfaceQuery::closest(const Vec3f& p, float max_distance, const Vec3f& normal,
-                                 float min_cos) const {
+                                 float min_cos, int near_triangle) const {
   SurfaceHit hit;
   if (impl_->triangles.empty()) return hit;
   QueryState state{&impl_->positions, &impl_->triangles, &impl_->face_normals, &impl_->source,
                    &impl_->confidence, p, normal, min_cos, !normal.isZero(), &hit};
+  // Every triangle within `radius` of p (the callback shrinks it as it finds closer ones).
+  auto search = [&](float radius) {
+    RTCPointQuery query;
+    query.x = p.x();
+    query.y = p.y();
+    query.z = p.z();
+    query.radius = radius;
+    query.time = 0;
+    RTCPointQueryContext context;
+    rtcInitPointQueryContext(&context);
+    rtcPointQuery(impl_->scene, &query, &context, point_query_callback, &state);
+  };
+  // A triangle that counts bounds the answer's distance: one search out to just past it finds
+  // the answer (the same one, in the same tree order, as the growing spheres below).
+  const int near = near_triangle >= 0 && near_triangle < static_cast<int>(impl_->kept.size())
+                       ? impl_->kept[near_triangle]
+                       : -1;
+  if (near >= 0) {
+    const Vec3f& n = impl_->face_normals[near];
+    const Tri& t = impl_->triangles[near];
+    Vec3f bary;
+    const float d = (closest_point_on_triangle(p, impl_->positions[t[0]], impl_->positions[t[1]],
+                                               impl_->positions[t[2]], &bary) - p).norm();
+    const float bound = d * (1 + 1e-5f) + 1e-9f;
+    if (!n.isZero() && !(state.use_normal && n.dot(normal) < min_cos) && bound < max_distance) {
+      search(bound);
+      if (hit.found) return hit;
+      hit = SurfaceHit{};  // not reached: the near triangle is within the bound
+    }
+  }
   // Embree visits every triangle whose box meets the query sphere, in tree order, not nearest
   // first, so a large radius costs thousands of visits before the sphere shrinks (and the
   // sphere never shrinks while only normal-incompatible triangles are near). Most queries have
@@ -152,15 +211,7 @@ SurfaceHit SurfaceQuery::closest(const Vec3f& p, float max_distance, const Vec3f
                            impl_->bounds.diagonal().norm();
   float radius = std::min(max_distance, kFirstRadius);
   for (;;) {
-    RTCPointQuery query;
-    query.x = p.x();
-    query.y = p.y();
-    query.z = p.z();
-    query.radius = radius;
-    query.time = 0;
-    RTCPointQueryContext context;
-    rtcInitPointQueryContext(&context);
-    rtcPointQuery(impl_->scene, &query, &context, point_query_callback, &state);
+    search(radius);
     if (hit.found || radius >= max_distance || radius >= everything) return hit;
     radius = std::min({max_distance, radius * kRadiusGrowth, everything});
   }

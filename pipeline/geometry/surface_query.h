@@ -23,16 +23,26 @@ struct SurfaceHit {
 class SurfaceQuery {
  public:
   // Keeps a copy of positions, triangles and the vertices' confidence (Mesh::confidence; a hit
-  // interpolates it). Degenerate triangles are skipped.
-  explicit SurfaceQuery(const Mesh& mesh);
+  // interpolates it). Degenerate triangles are skipped. A `deformable` query is for a mesh whose
+  // vertices move between queries (move_vertices).
+  explicit SurfaceQuery(const Mesh& mesh, bool deformable = false);
   ~SurfaceQuery();
   SurfaceQuery(const SurfaceQuery&) = delete;
   SurfaceQuery& operator=(const SurfaceQuery&) = delete;
 
   // Closest surface point within `max_distance` of `p`. With a non-zero `normal`, only
-  // triangles whose unit normal n satisfies n . normal >= min_cos count. Thread-safe.
+  // triangles whose unit normal n satisfies n . normal >= min_cos count. `near_triangle` (an
+  // input triangle, e.g. the answer for where p was before it moved a little; -1: none) only
+  // makes the search faster: when it counts, the answer is no farther than it, and the search
+  // starts at its distance. Thread-safe.
   SurfaceHit closest(const Vec3f& p, float max_distance, const Vec3f& normal = Vec3f::Zero(),
-                     float min_cos = -1.0f) const;
+                     float min_cos = -1.0f, int near_triangle = -1) const;
+
+  // Moves the vertices (as many as the mesh's; the same triangles): the same answers as a new
+  // query of the moved mesh, but for a deformable query at the cost of refitting the search
+  // tree's boxes instead of building a new tree. A triangle degenerate where the query was made
+  // stays out; one that degenerates is passed over. Not thread-safe.
+  void move_vertices(const std::vector<Vec3f>& positions);
 
   const std::vector<Vec3f>& positions() const;
   // Confidence of the surface at its vertex i (0..1): 1 when the mesh has none.

@@ -58,11 +58,14 @@ void refine_vertices(const TemplateModel& model, const SurfaceQuery& target,
   const double anchor = 1e-4;
   const FrameSamples samples =
       options.reverse_weight > 0 ? sample_frame(target, model.rest.num_vertices()) : FrameSamples{};
+  FittedSurface fitted;
+  // The latest matches both ways: the next search starts from them.
+  std::vector<Correspondence> matches;
+  std::vector<ReverseMatch> reverse;
   for (int it = 0; it < options.refine_iterations; ++it) {
     const std::vector<Vec3f> normals = vertex_normals(*positions, model.rest.triangles);
-    const std::vector<Correspondence> matches =
-        find_correspondences(*positions, normals, target, options.final_max_distance,
-                             options.robust_scale, options);
+    matches = find_correspondences(*positions, normals, target, options.final_max_distance,
+                                   options.robust_scale, options, it > 0 ? &matches : nullptr);
     const std::vector<Mat3d> rotations = local_rotations(model, *positions);
     SparseMatrix a = l;
     Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(nv, 3);
@@ -70,8 +73,9 @@ void refine_vertices(const TemplateModel& model, const SurfaceQuery& target,
       // Frame points pull the template's closest surface points (a triangle's barycentric
       // combination): c |sum_k b_k x_k - q|^2 couples the triangle's vertices, which the
       // Laplacian's pattern already does.
-      const std::vector<ReverseMatch> reverse = find_reverse_correspondences(
-          model, *positions, samples, options.final_max_distance, options.robust_scale, options);
+      reverse = find_reverse_correspondences(model, *positions, samples,
+                                             options.final_max_distance, options.robust_scale,
+                                             options, &fitted, it > 0 ? &reverse : nullptr);
       const double scale = options.refine_weight * options.reverse_weight * nv / reverse.size();
       for (const ReverseMatch& m : reverse) {
         if (m.weight <= 0) continue;

@@ -27,12 +27,15 @@ std::vector<Correspondence> find_correspondences(const std::vector<Vec3f>& posit
                                                  const std::vector<Vec3f>& normals,
                                                  const SurfaceQuery& target, double max_distance,
                                                  double robust_scale,
-                                                 const RegistrationOptions& options) {
+                                                 const RegistrationOptions& options,
+                                                 const std::vector<Correspondence>* previous) {
   std::vector<Correspondence> out(positions.size());
   const float min_cos = cos_degrees(options.normal_angle);
   tbb::parallel_for(std::size_t{0}, positions.size(), [&](std::size_t i) {
-    SurfaceHit hit = target.closest(positions[i], static_cast<float>(max_distance), normals[i], min_cos);
+    SurfaceHit hit = target.closest(positions[i], static_cast<float>(max_distance), normals[i],
+                                    min_cos, previous ? (*previous)[i].triangle : -1);
     if (!hit.found) return;
+    out[i].triangle = hit.triangle;
     out[i].point = hit.point.cast<double>();
     out[i].normal = hit.normal.cast<double>();
     out[i].weight =
@@ -55,18 +58,29 @@ FrameSamples sample_frame(const SurfaceQuery& target, std::size_t count) {
   return samples;
 }
 
-std::vector<ReverseMatch> find_reverse_correspondences(const TemplateModel& model,
-                                                       const std::vector<Vec3f>& positions,
-                                                       const FrameSamples& samples,
-                                                       double max_distance, double robust_scale,
-                                                       const RegistrationOptions& options) {
-  const SurfaceQuery query(fitted_mesh(model, positions));
+const SurfaceQuery& FittedSurface::at(const TemplateModel& model,
+                                      const std::vector<Vec3f>& positions) {
+  if (query_) {
+    query_->move_vertices(positions);
+  } else {
+    query_ = std::make_unique<SurfaceQuery>(fitted_mesh(model, positions), true);
+  }
+  return *query_;
+}
+
+std::vector<ReverseMatch> find_reverse_correspondences(
+    const TemplateModel& model, const std::vector<Vec3f>& positions, const FrameSamples& samples,
+    double max_distance, double robust_scale, const RegistrationOptions& options,
+    FittedSurface* fitted, const std::vector<ReverseMatch>* previous) {
+  const SurfaceQuery& query = fitted->at(model, positions);
   const float min_cos = cos_degrees(options.normal_angle);
   std::vector<ReverseMatch> out(samples.points.size());
   tbb::parallel_for(std::size_t{0}, samples.points.size(), [&](std::size_t i) {
     const SurfaceHit hit = query.closest(samples.points[i], static_cast<float>(max_distance),
-                                         samples.normals[i], min_cos);
+                                         samples.normals[i], min_cos,
+                                         previous ? (*previous)[i].face : -1);
     if (!hit.found) return;
+    out[i].face = hit.triangle;
     out[i].triangle = model.rest.triangles[hit.triangle];
     out[i].barycentric = hit.barycentric.cast<double>();
     out[i].point = samples.points[i].cast<double>();

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numeric>
 
 #include "pipeline/core/error.h"
 #include "pipeline/geometry/geodesic.h"
@@ -57,6 +58,23 @@ std::vector<double> crease_softness(const Mesh& mesh, const std::vector<std::vec
 
 namespace detail {
 
+std::vector<int> farthest_point_samples(const Mesh& mesh, const std::vector<std::vector<int>>& rings,
+                                        int count, std::vector<double>* dist,
+                                        std::vector<int>* owner) {
+  const int nv = static_cast<int>(mesh.num_vertices());
+  const double inf = std::numeric_limits<double>::infinity();
+  dist->assign(nv, inf);
+  owner->assign(nv, -1);
+  std::vector<int> samples;
+  int next = 0;
+  for (int j = 0; j < std::min(count, nv); ++j) {
+    samples.push_back(next);
+    geodesic_update(mesh, rings, next, j, inf, *dist, *owner);
+    next = static_cast<int>(std::max_element(dist->begin(), dist->end()) - dist->begin());
+  }
+  return samples;
+}
+
 DeformationGraph build_graph(const Mesh& mesh, const std::vector<std::vector<int>>& rings,
                              int node_count, int influences) {
   const int nv = static_cast<int>(mesh.num_vertices());
@@ -65,17 +83,11 @@ DeformationGraph build_graph(const Mesh& mesh, const std::vector<std::vector<int
   DeformationGraph graph;
   graph.influences = influences;
 
-  // Geodesic farthest-point sampling: each new node is the vertex farthest from all nodes so
-  // far; `owner` ends as the geodesic Voronoi partition.
-  std::vector<double> dist(nv, inf);
-  std::vector<int> owner(nv, -1);
-  int next = 0;
-  for (int j = 0; j < node_count; ++j) {
-    graph.node_vertex.push_back(next);
-    graph.node_position.push_back(mesh.positions[next].cast<double>());
-    geodesic_update(mesh, rings, next, j, inf, dist, owner);
-    next = static_cast<int>(std::max_element(dist.begin(), dist.end()) - dist.begin());
-  }
+  // Geodesic farthest-point nodes; `owner` is the geodesic Voronoi partition.
+  std::vector<double> dist;
+  std::vector<int> owner;
+  graph.node_vertex = farthest_point_samples(mesh, rings, node_count, &dist, &owner);
+  for (int v : graph.node_vertex) graph.node_position.push_back(mesh.positions[v].cast<double>());
   const double cover_radius = *std::max_element(dist.begin(), dist.end());
   if (!std::isfinite(cover_radius)) {
     throw InputError("template: the mesh is not connected (deformation graph cannot reach it all)");
@@ -193,6 +205,16 @@ TemplateModel build_template_model(const Mesh& template_mesh, const Registration
   model.ring_weights = cotangent_weights(model.rest, model.rings);
   model.graph = build_graph(model.rest, model.rings, options.graph_nodes, options.node_influences);
   soften_creases(options, &model);
+  if (static_cast<int>(model.rest.num_vertices()) <= options.graph_samples) {
+    model.data_vertices.resize(model.rest.num_vertices());
+    std::iota(model.data_vertices.begin(), model.data_vertices.end(), 0);
+  } else {
+    std::vector<double> dist;
+    std::vector<int> owner;
+    model.data_vertices =
+        farthest_point_samples(model.rest, model.rings, options.graph_samples, &dist, &owner);
+    std::sort(model.data_vertices.begin(), model.data_vertices.end());
+  }
   Vec3f centroid = Vec3f::Zero();
   for (const Vec3f& p : model.rest.positions) centroid += p;
   centroid /= static_cast<float>(model.rest.num_vertices());

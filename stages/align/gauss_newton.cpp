@@ -2,48 +2,61 @@
 // landmarks and the as-rigid-as-possible regulariser summed into a block-sparse system.
 #include "stages/align/registration_internal.h"
 
+#include "stages/align/block_cholesky.h"
+
 #include <tbb/parallel_for.h>
 
-#include <Eigen/SparseCholesky>
 #include <algorithm>
-#include <cstdint>
-#include <unordered_map>
 
 namespace fourd::align::detail {
 
 namespace {
 
 // The block pattern of the Gauss-Newton matrix: a 6x6 block per pair of nodes that share a
-// vertex or a graph edge. Fixed for the template, so the sparse Cholesky analysis is reused.
+// vertex or a graph edge. Fixed for the template, so the block Cholesky's ordering and pattern
+// are computed once and every step factorises the blocks' values.
 class GraphSystem {
  public:
   // With `reverse_matches`, also the blocks the reverse matches need.
-  GraphSystem(const TemplateModel& model, bool reverse_matches) : model_(model) {
+  GraphSystem(const TemplateModel& model, bool reverse_matches) {
     const DeformationGraph& g = model.graph;
     nodes_ = static_cast<int>(g.node_vertex.size());
-    for (int j = 0; j < nodes_; ++j) block_id(j, j);
+    // Per node a, the nodes b >= a it shares a block with.
+    std::vector<std::vector<int>> rows(nodes_);
+    auto pair = [&](int a, int b) {
+      if (a >= 0 && b >= 0) rows[std::min(a, b)].push_back(std::max(a, b));
+    };
+    for (int j = 0; j < nodes_; ++j) pair(j, j);
     const int nv = static_cast<int>(model.rest.num_vertices()), k = g.influences;
     for (int v = 0; v < nv; ++v) {
       for (int a = 0; a < k; ++a) {
-        for (int b = 0; b < k; ++b) {
-          int na = g.influence_node[v * k + a], nb = g.influence_node[v * k + b];
-          if (na >= 0 && nb >= 0 && na <= nb) block_id(na, nb);
-        }
+        for (int b = a; b < k; ++b) pair(g.influence_node[v * k + a], g.influence_node[v * k + b]);
       }
     }
-    // Reverse matches tie the nodes of a triangle's three vertices together.
+    // Reverse matches tie the nodes of a triangle's three vertices together (each node once:
+    // the three mostly share theirs).
+    std::vector<int> tied;
     for (const Tri& t : reverse_matches ? model.rest.triangles : std::vector<Tri>{}) {
-      for (int a = 0; a < 3 * k; ++a) {
-        for (int b = 0; b < 3 * k; ++b) {
-          const int na = g.influence_node[t[a / k] * k + a % k];
-          const int nb = g.influence_node[t[b / k] * k + b % k];
-          if (na >= 0 && nb >= 0 && na <= nb) block_id(na, nb);
-        }
+      tied.clear();
+      for (int a = 0; a < 3 * k; ++a) tied.push_back(g.influence_node[t[a / k] * k + a % k]);
+      std::sort(tied.begin(), tied.end());
+      tied.erase(std::unique(tied.begin(), tied.end()), tied.end());
+      for (std::size_t a = 0; a < tied.size(); ++a) {
+        for (std::size_t b = a; b < tied.size(); ++b) pair(tied[a], tied[b]);
       }
     }
     for (int j = 0; j < nodes_; ++j) {
-      for (int n : g.node_neighbours[j]) block_id(std::min(j, n), std::max(j, n));
+      for (int n : g.node_neighbours[j]) pair(j, n);
     }
+    row_start_.assign(1, 0);
+    for (int a = 0; a < nodes_; ++a) {
+      std::sort(rows[a].begin(), rows[a].end());
+      rows[a].erase(std::unique(rows[a].begin(), rows[a].end()), rows[a].end());
+      for (int b : rows[a]) pairs_.emplace_back(a, b);
+      cols_.insert(cols_.end(), rows[a].begin(), rows[a].end());
+      row_start_.push_back(static_cast<int>(cols_.size()));
+    }
+    cholesky_ = std::make_unique<BlockCholesky>(nodes_, pairs_);
   }
 
   int unknowns() const { return 6 * nodes_; }
@@ -70,9 +83,9 @@ class GraphSystem {
   // parts.
   void add(Part& part, int a, int b, const Mat6& m) const {
     if (a <= b) {
-      part.blocks[ids_.at(key(a, b))] += m;
+      part.blocks[block(a, b)] += m;
     } else {
-      part.blocks[ids_.at(key(b, a))] += m.transpose();
+      part.blocks[block(b, a)] += m.transpose();
     }
   }
   void add(int a, int b, const Mat6& m) { add(parts_[0], a, b, m); }
@@ -87,40 +100,25 @@ class GraphSystem {
     }
   }
 
-  SparseMatrix matrix(double damping) const {
-    std::vector<Eigen::Triplet<double>> triplets;
-    triplets.reserve(pairs_.size() * 72);
-    for (std::size_t i = 0; i < pairs_.size(); ++i) {
-      const auto [a, b] = pairs_[i];
-      const Mat6& m = parts_[0].blocks[i];
-      for (int r = 0; r < 6; ++r) {
-        for (int c = 0; c < 6; ++c) {
-          double value = m(r, c);
-          if (a == b && r == c) value += damping;
-          triplets.emplace_back(6 * a + r, 6 * b + c, value);
-          if (a != b) triplets.emplace_back(6 * b + c, 6 * a + r, value);
-        }
-      }
-    }
-    SparseMatrix h(6 * nodes_, 6 * nodes_);
-    h.setFromTriplets(triplets.begin(), triplets.end());
-    return h;
-  }
+  // Factorises the summed matrix with `damping` added to its diagonal; false when it is not
+  // positive definite.
+  bool factorize(double damping) { return cholesky_->factorize(parts_[0].blocks, damping); }
+  // The solution of the factorised system with right-hand side b.
+  Eigen::VectorXd solve(const Eigen::VectorXd& b) const { return cholesky_->solve(b); }
   const Eigen::VectorXd& gradient() const { return parts_[0].gradient; }
 
  private:
-  std::uint64_t key(int a, int b) const { return static_cast<std::uint64_t>(a) * nodes_ + b; }
-  int block_id(int a, int b) {
-    auto [it, inserted] = ids_.try_emplace(key(a, b), static_cast<int>(pairs_.size()));
-    if (inserted) pairs_.emplace_back(a, b);
-    return it->second;
+  // The block of nodes a <= b.
+  int block(int a, int b) const {
+    const auto begin = cols_.begin() + row_start_[a], end = cols_.begin() + row_start_[a + 1];
+    return static_cast<int>(std::lower_bound(begin, end, b) - cols_.begin());
   }
 
-  const TemplateModel& model_;
   int nodes_ = 0;
-  std::unordered_map<std::uint64_t, int> ids_;
-  std::vector<std::pair<int, int>> pairs_;
+  std::vector<int> row_start_, cols_;  // per node a, the nodes b >= a of its blocks, sorted
+  std::vector<std::pair<int, int>> pairs_;  // block i is pairs_[i] = (a, b), a <= b
   std::vector<Part> parts_;
+  std::unique_ptr<BlockCholesky> cholesky_;
 };
 
 // The Jacobian of a deformed point with respect to one graph node's update (a rotation
@@ -186,12 +184,12 @@ bool graph_gauss_newton_step(const TemplateModel& model, const std::vector<Corre
                              const std::vector<ReverseMatch>& reverse,
                              const std::vector<Landmark>& landmarks, double stiffness,
                              const RegistrationOptions& options, GraphSystem& system,
-                             Eigen::SimplicialLDLT<SparseMatrix>& solver, bool analyse,
                              DeformationState* state) {
   const DeformationGraph& g = model.graph;
-  const int nv = static_cast<int>(model.rest.num_vertices());
-  // Data weight per vertex: nodes / vertices, so that the balance with the regulariser does not
-  // depend on the template's resolution.
+  const std::vector<int>& data_vertices = model.data_vertices;
+  const int nv = static_cast<int>(data_vertices.size());
+  // Data weight per vertex: nodes / data vertices, so that the balance with the regulariser does
+  // not depend on the template's resolution.
   const double data_weight = static_cast<double>(g.node_vertex.size()) / nv;
   const double reverse_weight =
       reverse.empty() ? 0.0 : options.reverse_weight * data_weight * nv / reverse.size();
@@ -207,8 +205,8 @@ bool graph_gauss_newton_step(const TemplateModel& model, const std::vector<Corre
     for (std::size_t i = begin; i < end; ++i) {
       if (i < static_cast<std::size_t>(nv)) {
         // Data: point-to-plane plus a little point-to-point, with P = c (n n^T + mu I).
-        const int v = static_cast<int>(i);
-        const Correspondence& m = matches[v];
+        const int v = data_vertices[i];
+        const Correspondence& m = matches[i];
         if (m.weight <= 0) continue;
         const double one = 1.0;
         const int nodes = point_jacobian(model, *state, &v, &one, 1, &deformed, jac);
@@ -258,12 +256,9 @@ bool graph_gauss_newton_step(const TemplateModel& model, const std::vector<Corre
     }
   }
 
-  SparseMatrix h = system.matrix(1e-6 * std::max(stiffness, 1e-3));
-  if (analyse) solver.analyzePattern(h);
-  solver.factorize(h);
-  if (solver.info() != Eigen::Success) return false;
-  const Eigen::VectorXd delta = solver.solve(-system.gradient());
-  if (solver.info() != Eigen::Success || !delta.allFinite()) return false;
+  if (!system.factorize(1e-6 * std::max(stiffness, 1e-3))) return false;
+  const Eigen::VectorXd delta = system.solve(-system.gradient());
+  if (!delta.allFinite()) return false;
   for (std::size_t j = 0; j < g.node_vertex.size(); ++j) {
     state->rotation[j] = nearest_rotation(rotation_from_vector(delta.segment<3>(6 * j)) * state->rotation[j]);
     state->translation[j] += delta.segment<3>(6 * j + 3);
@@ -277,8 +272,6 @@ struct GraphGaussNewton::Impl {
   Impl(const TemplateModel& model, bool reverse_matches) : model(model), system(model, reverse_matches) {}
   const TemplateModel& model;
   GraphSystem system;
-  Eigen::SimplicialLDLT<SparseMatrix> solver;
-  bool analysed = false;
 };
 
 GraphGaussNewton::GraphGaussNewton(const TemplateModel& model, bool reverse_matches)
@@ -290,11 +283,8 @@ bool GraphGaussNewton::step(const std::vector<Correspondence>& matches,
                             const std::vector<ReverseMatch>& reverse,
                             const std::vector<Landmark>& landmarks, double stiffness,
                             const RegistrationOptions& options, DeformationState* state) {
-  const bool solved = graph_gauss_newton_step(impl_->model, matches, reverse, landmarks, stiffness,
-                                              options, impl_->system, impl_->solver,
-                                              !impl_->analysed, state);
-  impl_->analysed = true;
-  return solved;
+  return graph_gauss_newton_step(impl_->model, matches, reverse, landmarks, stiffness, options,
+                                 impl_->system, state);
 }
 
 }  // namespace fourd::align::detail

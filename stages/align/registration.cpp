@@ -51,10 +51,11 @@ Eigen::Isometry3d rigid_icp(const std::vector<Vec3f>& points, const std::vector<
                             const RegistrationOptions& options) {
   Eigen::Isometry3d total = Eigen::Isometry3d::Identity();
   std::vector<Vec3f> current = points, current_normals = normals;
+  std::vector<Correspondence> matches;
   for (int it = 0; it < iterations; ++it) {
-    const std::vector<Correspondence> matches =
-        find_correspondences(current, current_normals, target, max_distance,
-                             std::max(options.robust_scale, max_distance / 3), options);
+    matches = find_correspondences(current, current_normals, target, max_distance,
+                                   std::max(options.robust_scale, max_distance / 3), options,
+                                   it > 0 ? &matches : nullptr);
     Vec3d centroid = Vec3d::Zero();
     double weight_sum = 0;
     int matched = 0;
@@ -108,16 +109,26 @@ DeformationState register_pass(const TemplateModel& model, const DeformationStat
                                const std::vector<Landmark>& landmarks, int first_level = 0) {
   DeformationState state = start;
   std::vector<Vec3f> positions = deform_with_graph(model, state);
+  const std::vector<int>& data_vertices = model.data_vertices;
+  auto of_data = [&](const std::vector<Vec3f>& all) {
+    std::vector<Vec3f> out(data_vertices.size());
+    for (std::size_t i = 0; i < data_vertices.size(); ++i) out[i] = all[data_vertices[i]];
+    return out;
+  };
   if (options.rigid_iterations > 0) {
     const Eigen::Isometry3d motion =
-        rigid_icp(positions, vertex_normals(positions, model.rest.triangles), target,
-                  options.rigid_iterations, options.max_distance, options);
+        rigid_icp(of_data(positions), of_data(vertex_normals(positions, model.rest.triangles)),
+                  target, options.rigid_iterations, options.max_distance, options);
     apply_rigid(model, motion, &state);
   }
 
   const FrameSamples samples =
-      options.reverse_weight > 0 ? sample_frame(target, model.rest.num_vertices()) : FrameSamples{};
+      options.reverse_weight > 0 ? sample_frame(target, data_vertices.size()) : FrameSamples{};
   GraphGaussNewton solver(model, options.reverse_weight > 0);
+  FittedSurface fitted;
+  // The latest matches both ways: the next search starts from them.
+  std::vector<Correspondence> matches;
+  std::vector<ReverseMatch> reverse;
   const int levels = static_cast<int>(options.stiffness.size());
   for (int level = std::min(first_level, levels - 1); level < levels; ++level) {
     // The matching distance shrinks geometrically from max_distance to final_max_distance.
@@ -127,14 +138,15 @@ DeformationState register_pass(const TemplateModel& model, const DeformationStat
     const double robust_scale = std::max(options.robust_scale, max_distance / 3);
     for (int it = 0; it < options.iterations_per_level; ++it) {
       positions = deform_with_graph(model, state);
-      const std::vector<Correspondence> matches = find_correspondences(
-          positions, vertex_normals(positions, model.rest.triangles), target, max_distance,
-          robust_scale, options);
-      const std::vector<ReverseMatch> reverse =
-          options.reverse_weight > 0
-              ? find_reverse_correspondences(model, positions, samples, max_distance, robust_scale,
-                                             options)
-              : std::vector<ReverseMatch>{};
+      matches = find_correspondences(of_data(positions),
+                                     of_data(vertex_normals(positions, model.rest.triangles)),
+                                     target, max_distance, robust_scale, options,
+                                     matches.empty() ? nullptr : &matches);
+      if (options.reverse_weight > 0) {
+        reverse = find_reverse_correspondences(model, positions, samples, max_distance,
+                                               robust_scale, options, &fitted,
+                                               reverse.empty() ? nullptr : &reverse);
+      }
       const bool coarse = level < options.landmark_levels;
       if (!solver.step(matches, reverse, coarse ? landmarks : std::vector<Landmark>{},
                        options.stiffness[level], options, &state)) {

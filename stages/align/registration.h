@@ -12,8 +12,8 @@
 //     onto frame surface it has not reached yet (a limb that moved far) - and
 //     as-rigid-as-possible graph terms, with the regulariser relaxed level by level and softened
 //     in the template's concave creases (armpits, crotch: where parts of the body meet and skin
-//     stretches as the joint opens); the sparse Cholesky's ordering and
-//     symbolic analysis are computed once and reused by every iteration;
+//     stretches as the joint opens); the sparse (6x6-block) Cholesky's ordering
+//     and factor pattern are computed once and reused by every iteration;
 //  3. a vertex-level as-rigid-as-possible refinement (Sorkine & Alexa 2007) towards the
 //     surface (matched both ways too), regularised against the template's own shape, so detail never accumulates
 //     errors along the tree.
@@ -57,6 +57,11 @@ struct RegistrationOptions {
   int rigid_iterations = 10;  // rigid ICP iterations before the non-rigid fit
   std::vector<double> stiffness = {8, 4, 1.5, 0.5, 0.08};  // graph regulariser weight per level
   int iterations_per_level = 5;  // Gauss-Newton iterations per level
+  int graph_samples = 4000;      // template vertices whose matches drive the graph (and the
+                                 // rigid fit): a larger template is sampled evenly to this many
+                                 // (TemplateModel::data_vertices), so that a pass costs about
+                                 // the same at any resolution (the graph has graph_nodes nodes
+                                 // whatever the template's); the refinement moves every vertex
   double max_distance = 0.25;    // correspondences farther are ignored, first level [m]
   double final_max_distance = 0.06;  // ... last level and refinement [m]
   double normal_angle = 60;      // largest angle between matched normals [deg]
@@ -141,6 +146,10 @@ struct TemplateModel {
   // refinement, at least crease_refine_floor: ring_weights include it).
   std::vector<double> vertex_softness;
   std::vector<double> node_softness;
+  // The vertices whose matches drive the graph and the rigid fit, in increasing order: all of
+  // them up to graph_samples vertices, else graph_samples spread evenly over the surface
+  // (geodesic farthest points).
+  std::vector<int> data_vertices;
 };
 
 TemplateModel build_template_model(const Mesh& template_mesh, const RegistrationOptions& options);

@@ -64,14 +64,17 @@ struct Correspondence {
   Vec3d point = Vec3d::Zero();
   Vec3d normal = Vec3d::Zero();
   double weight = 0;  // 0: no match
+  int triangle = -1;  // the frame triangle `point` is on
 };
 
-// Closest compatible surface points of every vertex, robustly weighted.
+// Closest compatible surface points of every vertex, robustly weighted. `previous` (the same
+// points' matches before they moved, or null) only speeds the search up.
 std::vector<Correspondence> find_correspondences(const std::vector<Vec3f>& positions,
                                                  const std::vector<Vec3f>& normals,
                                                  const SurfaceQuery& target, double max_distance,
                                                  double robust_scale,
-                                                 const RegistrationOptions& options);
+                                                 const RegistrationOptions& options,
+                                                 const std::vector<Correspondence>* previous = nullptr);
 
 // A frame point matched to the closest point of the deformed template (a barycentric point of
 // one template triangle). The forward matches only pull the template onto surface it is
@@ -83,6 +86,7 @@ struct ReverseMatch {
   Vec3d point = Vec3d::Zero();    // the frame point
   Vec3d normal = Vec3d::Zero();   // the frame's unit normal there
   double weight = 0;              // 0: no match
+  int face = -1;                  // the template triangle (index)
 };
 
 // The frame points the reverse matches start from: about one per template vertex, spread
@@ -96,13 +100,25 @@ struct FrameSamples {
 // About `count` frame vertices spread evenly, with their normals and confidence.
 FrameSamples sample_frame(const SurfaceQuery& target, std::size_t count);
 
-// Each sample's closest compatible point of the template deformed to `positions`, robustly
-// weighted.
-std::vector<ReverseMatch> find_reverse_correspondences(const TemplateModel& model,
-                                                       const std::vector<Vec3f>& positions,
-                                                       const FrameSamples& samples,
-                                                       double max_distance, double robust_scale,
-                                                       const RegistrationOptions& options);
+// The deformed template as a surface to match frame points to, kept over the iterations of a
+// fit: the first call builds its search tree, the later ones move its vertices and refit the
+// tree (the same answers, at a fraction of a new tree's cost).
+class FittedSurface {
+ public:
+  // The template deformed to `positions`.
+  const SurfaceQuery& at(const TemplateModel& model, const std::vector<Vec3f>& positions);
+
+ private:
+  std::unique_ptr<SurfaceQuery> query_;
+};
+
+// Each sample's closest compatible point of the template deformed to `positions` (`fitted`
+// holds it), robustly weighted. `previous` (the samples' matches to the template as it was
+// before, or null) only speeds the search up.
+std::vector<ReverseMatch> find_reverse_correspondences(
+    const TemplateModel& model, const std::vector<Vec3f>& positions, const FrameSamples& samples,
+    double max_distance, double robust_scale, const RegistrationOptions& options,
+    FittedSurface* fitted, const std::vector<ReverseMatch>* previous = nullptr);
 
 // The index of the position nearest `p` (-1 when there is none).
 int nearest_vertex(const std::vector<Vec3f>& positions, const Vec3f& p);
@@ -127,6 +143,14 @@ TipLandmarks tip_landmarks(const TemplateModel& model, const std::vector<Vec3f>&
 
 // ---- The deformation graph (deformation_graph.cpp) ------------------------------------------
 
+// Geodesic farthest-point sampling from vertex 0: each new sample is the vertex farthest from
+// all samples so far (min(count, vertices) of them, in that order). `dist` receives every
+// vertex's geodesic distance from its nearest sample, `owner` that sample's index (the geodesic
+// Voronoi partition).
+std::vector<int> farthest_point_samples(const Mesh& mesh, const std::vector<std::vector<int>>& rings,
+                                        int count, std::vector<double>* dist,
+                                        std::vector<int>* owner);
+
 // Geodesic farthest-point nodes, edges between touching Voronoi cells, K blended influences
 // per vertex (Sumner et al. 2007).
 DeformationGraph build_graph(const Mesh& mesh, const std::vector<std::vector<int>>& rings,
@@ -145,8 +169,8 @@ void soften_creases(const RegistrationOptions& options, TemplateModel* model);
 // ---- Gauss-Newton on the graph (gauss_newton.cpp) ---------------------------------------------
 
 // The graph energy's Gauss-Newton solver for one registration pass: the matrix's block pattern
-// and the sparse Cholesky's ordering and symbolic analysis are computed once, at the first
-// step, and reused by every later one.
+// and the block Cholesky's ordering and factor pattern (block_cholesky.h) are computed once
+// and reused by every step.
 class GraphGaussNewton {
  public:
   // With `reverse_matches`, the pattern also holds the blocks the reverse matches need.
@@ -155,9 +179,9 @@ class GraphGaussNewton {
   GraphGaussNewton(const GraphGaussNewton&) = delete;
   GraphGaussNewton& operator=(const GraphGaussNewton&) = delete;
 
-  // One step of the graph energy (data both ways, landmarks, ARAP regulariser of weight
-  // `stiffness`); updates `state`'s rotations and translations. False when the system could not
-  // be factorised or solved.
+  // One step of the graph energy (data both ways: `matches` of model.data_vertices, in their
+  // order; landmarks; ARAP regulariser of weight `stiffness`); updates `state`'s rotations and
+  // translations. False when the system could not be factorised or solved.
   bool step(const std::vector<Correspondence>& matches, const std::vector<ReverseMatch>& reverse,
             const std::vector<Landmark>& landmarks, double stiffness,
             const RegistrationOptions& options, DeformationState* state);
