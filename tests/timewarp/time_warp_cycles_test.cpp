@@ -9,7 +9,10 @@
 #include <numbers>
 #include <random>
 
+#include "stages/synth/character.h"
+#include "stages/synth/motion.h"
 #include "stages/timewarp/time_warp.h"
+#include "stages/timewarp/timewarp.h"
 
 namespace fourd::timewarp {
 namespace {
@@ -196,6 +199,71 @@ TEST(Cycles, ALongTakeYieldsItsCyclesAndItsPausesAsOneShots) {
   EXPECT_TRUE(covered(45, 61));
   EXPECT_TRUE(covered(108, 119));
   std::printf("long take: period %.2f, %zu cycles, %zu one-shot segments\n", s.period,
+              s.cycles.size(), s.one_shots.size());
+}
+
+// Every 8th vertex of a mesh (the test's cost; a cycle is as clear on 600 vertices as on 5,000).
+Eigen::Matrix3Xd positions(const Mesh& mesh) {
+  constexpr std::size_t kStride = 8;
+  Eigen::Matrix3Xd x(3, static_cast<Eigen::Index>((mesh.positions.size() + kStride - 1) / kStride));
+  for (std::size_t v = 0; v < mesh.positions.size(); v += kStride) {
+    x.col(static_cast<Eigen::Index>(v / kStride)) = mesh.positions[v].cast<double>();
+  }
+  return x;
+}
+
+// Synth's performer walking round a circle at 12 fps with two stands (slowing to a stop,
+// standing still, setting off) in a take of 260 frames, as variants/long_take_pauses: its root-removed take, as the stage
+// makes it from aligned meshes, and the clip.
+struct PausingWalk {
+  synth::MotionClip clip;
+  LocalTake take;
+};
+
+PausingWalk pausing_walk() {
+  synth::CharacterOptions options;
+  options.texture_size = 256;
+  const synth::Character performer = synth::make_procedural_character(options, 1);
+  synth::MotionSpec spec;
+  spec.take = "circle_pauses";
+  spec.kind = "turn";
+  spec.frames = 260;
+  spec.speed = 1.1;
+  spec.turn_rate = 60;
+  spec.pauses = {synth::PauseSpec{62, 18}, synth::PauseSpec{173, 18}};
+  PausingWalk w;
+  w.clip = synth::generate_motion(performer.skeleton, spec, 12.0);
+  std::vector<Eigen::Matrix3Xd> frames;
+  for (const synth::Pose& pose : w.clip.poses) {
+    frames.push_back(positions(synth::skin_mesh(performer.skin, synth::forward_kinematics(performer.skeleton, pose))));
+  }
+  const Eigen::Matrix3Xd templ = positions(performer.skin.rest);
+  w.take = make_local_take(spec.take, std::move(frames), templ, torso_weights(templ), 8);
+  return w;
+}
+
+// The walking bouts' period is found through the stands, every cycle lies within a bout, and
+// each stand is offered as a one-shot segment.
+TEST(Cycles, ThePerformersWalkWithPausesLoopsItsBoutsAndOffersItsStands) {
+  const PausingWalk w = pausing_walk();
+  const TakeSegments s = find_cycles(w.take, CycleOptions{});
+  const double truth = w.clip.cycle_frames;
+  EXPECT_NEAR(s.period, truth, 0.5);
+  EXPECT_NEAR(find_period(w.take, CycleOptions{}), truth, 0.5);
+  ASSERT_GE(s.cycles.size(), 3u);
+  for (const Cycle& c : s.cycles) {
+    EXPECT_NEAR(c.period, truth, 0.15 * truth) << "cycle at " << c.start;
+    // No cycle takes in a stand: somewhere in it the gait is under way, not standing.
+    for (int f = static_cast<int>(std::ceil(c.start)); f <= static_cast<int>(c.start + c.period); ++f) {
+      EXPECT_GT(w.clip.amplitude[static_cast<std::size_t>(f)], 0.0) << "cycle " << c.start << " + " << c.period;
+    }
+  }
+  for (const synth::PauseSpec& p : w.clip.spec.pauses) {
+    bool offered = false;
+    for (const FrameRange& r : s.one_shots) offered |= r.first <= p.at && r.last >= p.at + p.frames - 1;
+    EXPECT_TRUE(offered) << "the stand from frame " << p.at;
+  }
+  std::printf("walk with pauses: period %.2f (truth %.0f), %zu cycles, %zu one-shot segments\n", s.period, truth,
               s.cycles.size(), s.one_shots.size());
 }
 
