@@ -344,15 +344,20 @@ Cycle find_cycle(const LocalTake& take, const CycleOptions& options) {
   const CycleScorer scorer(take);
   const double period = find_period(scorer, options);
   const int n = take.num_frames();
-  // The start where the cycle closes best.
-  int start = 0;
-  double best_total = kInf;
+  // The start where the cycle closes best, of those where the take moves: standing still (a
+  // long take's pause) closes best of all, but its state varies less still (closure_ratio
+  // above max_closure_ratio), and it is no cycle.
   const double w = CycleScorer::velocity_weight(period);
-  for (int s = 0; s + period <= n - 1 + 1e-9; ++s) {
-    const double total = scorer.closure(s, period).total(w);
-    if (total < best_total) best_total = total, start = s;
+  std::vector<std::pair<double, int>> starts;
+  for (int s = 0; s + period <= n - 1 + 1e-9; ++s) starts.emplace_back(scorer.closure(s, period).total(w), s);
+  if (starts.empty()) starts.emplace_back(kInf, 0);
+  std::stable_sort(starts.begin(), starts.end(),
+                   [](const std::pair<double, int>& a, const std::pair<double, int>& b) { return a.first < b.first; });
+  Cycle cycle = scorer.evaluate(starts.front().second, period);
+  for (std::size_t k = 1; k < starts.size() && !(cycle.closure_ratio <= options.max_closure_ratio); ++k) {
+    const Cycle next = scorer.evaluate(starts[k].second, period);
+    if (next.closure_ratio <= options.max_closure_ratio) cycle = next;
   }
-  const Cycle cycle = scorer.evaluate(start, period);
   if (!(cycle.closure_ratio <= options.max_closure_ratio)) {
     throw InputError(fmt::format(
         "take {}: cannot close a cycle: the best cycle (frames {:.2f} to {:.2f}, {:.2f} frames) "
