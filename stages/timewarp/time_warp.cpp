@@ -451,7 +451,7 @@ RootTransform root_at_phase(const LocalTake& take, const TakeTiming& timing, dou
   return r;
 }
 
-LocalTake steady_cycle_root(LocalTake take, const TakeTiming& timing) {
+LocalTake steady_cycle_root(LocalTake take, const TakeTiming& timing, const std::vector<FrameRange>& one_shots) {
   const int n = take.num_frames();
   const double start = timing.start, period = timing.length;
   // Roots about the take's mean position c, so that a heading error of W does not turn into a
@@ -470,11 +470,24 @@ LocalTake steady_cycle_root(LocalTake take, const TakeTiming& timing) {
     const double a = std::clamp(x - i, 0.0, 1.0);
     return mix_roots(raw[i], raw[i + 1], a);
   };
+  // Over the frames that loop: a long take's stands and the steps into and out of them (its
+  // one-shot segments) would slow the mean down.
+  auto loops = [&](int x) {
+    for (const FrameRange& r : one_shots) {
+      if (x < r.last && x + period > r.first) return false;
+    }
+    return true;
+  };
   RootTransform w;
   int count = 0;
-  for (int x = 0; x + period <= n - 1 + 1e-9; ++x, ++count) {
-    const RootTransform motion = root_compose(centred(raw_at(x + period)), root_inverse(centred(raw[x])));
-    w = {w.x + motion.x, w.y + motion.y, w.heading + motion.heading};
+  for (const bool all : {false, true}) {
+    for (int x = 0; x + period <= n - 1 + 1e-9; ++x) {
+      if (!all && !loops(x)) continue;
+      const RootTransform motion = root_compose(centred(raw_at(x + period)), root_inverse(centred(raw[x])));
+      w = {w.x + motion.x, w.y + motion.y, w.heading + motion.heading};
+      ++count;
+    }
+    if (count > 0) break;
   }
   if (count == 0) {
     throw InputError(fmt::format("take {}: its cycle ({:.2f} frames) is longer than the take",

@@ -34,7 +34,8 @@ LocalTake make_local_take(const std::string& name, std::vector<Eigen::Matrix3Xd>
 }
 
 WarpedClass warp_class(const MotionClassConfig& motion, double fps, const Mesh& template_mesh,
-                       std::vector<LocalTake> takes, const TimewarpOptions& options) {
+                       std::vector<LocalTake> takes, const TimewarpOptions& options,
+                       const std::vector<TakeSegments>& segments) {
   if (takes.size() < 2 || takes.size() > 3) {
     std::string names;
     for (const LocalTake& t : takes) names += (names.empty() ? "" : ", ") + t.name;
@@ -94,7 +95,8 @@ WarpedClass warp_class(const MotionClassConfig& motion, double fps, const Mesh& 
   // A one-shot take's root is its real motion (a jump travels), kept as estimated.
   if (motion.cyclic) {
     tbb::parallel_for(std::size_t{0}, takes.size(), [&](std::size_t k) {
-      takes[k] = steady_cycle_root(std::move(takes[k]), timing[k]);
+      takes[k] = steady_cycle_root(std::move(takes[k]), timing[k],
+                                   k < segments.size() ? segments[k].one_shots : std::vector<FrameRange>{});
     });
   }
 
@@ -183,7 +185,7 @@ void run_timewarp(const Session& session, const StageArgs& args) {
       segments[k] = find_cycles(takes[k], options.cycle());
     });
     const WarpedClass warped = warp_class(motion, config.fps, input.template_mesh,
-                                          std::move(takes), options);
+                                          std::move(takes), options, segments);
     write_warped_class(staged.path() / (motion.name + ".twarp"), warped);
     write_file_atomic(staged.path() / (motion.name + ".json"),
                       warped_class_summary(warped).dump(1));

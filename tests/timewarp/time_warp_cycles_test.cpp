@@ -243,7 +243,8 @@ PausingWalk pausing_walk() {
 }
 
 // The walking bouts' period is found through the stands, every cycle lies within a bout, each
-// stand is offered as a one-shot segment, and the cycle a class loops is not a stand.
+// stand is offered as a one-shot segment, the cycle a class loops is not a stand, and its
+// steady root turns at the full pace.
 TEST(Cycles, ThePerformersWalkWithPausesLoopsItsBoutsAndOffersItsStands) {
   const PausingWalk w = pausing_walk();
   const TakeSegments s = find_cycles(w.take, CycleOptions{});
@@ -271,8 +272,21 @@ TEST(Cycles, ThePerformersWalkWithPausesLoopsItsBoutsAndOffersItsStands) {
   for (int f = static_cast<int>(std::ceil(c.start)); f <= static_cast<int>(c.start + c.period); ++f) {
     EXPECT_EQ(w.clip.amplitude[static_cast<std::size_t>(f)], 1.0) << "the class's cycle " << c.start;
   }
+  // Its steady root turns as the walk does at full pace: the mean motion per cycle is taken
+  // outside the one-shot segments; over the whole take, the stands would slow it to about half.
+  const TakeTiming timing = cyclic_timing(c);
+  auto turn = [&](const LocalTake& take) {
+    return root_at(take, c.start + c.period).heading - root_at(take, c.start).heading;
+  };
+  const double true_turn = w.clip.root[239 + 14].heading - w.clip.root[239].heading;
+  const double looping = turn(steady_cycle_root(w.take, timing, s.one_shots));
+  const double whole = turn(steady_cycle_root(w.take, timing));
+  EXPECT_NEAR(looping, true_turn * c.period / truth, 1.5 * std::numbers::pi / 180);
+  EXPECT_LT(whole, 0.75 * looping);
   std::printf("walk with pauses: period %.2f (truth %.0f), %zu cycles, %zu one-shot segments, the class's cycle "
-              "%.2f + %.2f\n", s.period, truth, s.cycles.size(), s.one_shots.size(), c.start, c.period);
+              "%.2f + %.2f turning %.1f deg (truth %.1f; %.1f measured over the whole take)\n", s.period, truth,
+              s.cycles.size(), s.one_shots.size(), c.start, c.period, looping * 180 / std::numbers::pi,
+              true_turn * c.period / truth * 180 / std::numbers::pi, whole * 180 / std::numbers::pi);
 }
 
 TEST(Cycles, AMotionThatDoesNotLoopIsOneOneShot) {
