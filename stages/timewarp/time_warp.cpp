@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <optional>
 
 #include "pipeline/core/error.h"
 
@@ -265,6 +266,61 @@ class CycleScorer {
   int n_;
 };
 
+// The vertices of a take that move a lot but repeat at no lag (loose cloth in a chaotic swing,
+// hair). Per vertex: its variation var (mean squared distance from its mean position) and,
+// at every lag from min_cycle_frames on, the mean squared distance c between its positions
+// that lag apart; unrelated positions give c = 2 var. Loose: at no lag below
+// kLooseRepeat^2 * 2 var, and a variation at least a quarter of the mean vertex's (a vertex
+// that hardly moves is left in: its noise is no swing). Shape only: enough to tell the parts
+// apart.
+constexpr double kLooseRepeat = 0.25;
+
+std::vector<bool> loose_vertices(const LocalTake& take, const CycleOptions& options) {
+  const int n = take.num_frames();
+  const Eigen::Index nv = take.shapes[0].cols();
+  Eigen::Matrix3Xd mean = Eigen::Matrix3Xd::Zero(3, nv);
+  for (const Eigen::Matrix3Xd& x : take.shapes) mean += x / n;
+  Eigen::RowVectorXd var = Eigen::RowVectorXd::Zero(nv);
+  for (const Eigen::Matrix3Xd& x : take.shapes) var += (x - mean).colwise().squaredNorm() / n;
+  Eigen::RowVectorXd best = Eigen::RowVectorXd::Constant(nv, kInf);
+  for (int lag = options.min_cycle_frames; lag <= n - 1; ++lag) {
+    Eigen::RowVectorXd c = Eigen::RowVectorXd::Zero(nv);
+    for (int s = 0; s + lag <= n - 1; ++s) c += (take.shapes[s] - take.shapes[s + lag]).colwise().squaredNorm();
+    best = best.cwiseMin(c / (n - lag));
+  }
+  const double mean_var = var.mean();
+  std::vector<bool> loose(static_cast<std::size_t>(nv), false);
+  for (Eigen::Index v = 0; v < nv; ++v) {
+    loose[static_cast<std::size_t>(v)] = var[v] >= 0.25 * mean_var && best[v] > kLooseRepeat * kLooseRepeat * 2 * var[v];
+  }
+  return loose;
+}
+
+// The take without its loose vertices, when it has some and they are fewer than half: what
+// the cycle is scored on. Without: nothing (score the take itself).
+std::optional<LocalTake> periodic_part(const LocalTake& take, const CycleOptions& options) {
+  if (take.num_frames() - 1 < options.min_cycle_frames) return std::nullopt;
+  const std::vector<bool> loose = loose_vertices(take, options);
+  std::vector<Eigen::Index> keep;
+  for (std::size_t v = 0; v < loose.size(); ++v) {
+    if (!loose[v]) keep.push_back(static_cast<Eigen::Index>(v));
+  }
+  if (keep.size() == loose.size() || 2 * keep.size() < loose.size()) return std::nullopt;
+  LocalTake part = take;
+  for (Eigen::Matrix3Xd& x : part.shapes) x = Eigen::Matrix3Xd(x(Eigen::all, keep));
+  return part;
+}
+
+// A scorer of the take's periodic part (periodic_part), or of the take.
+struct PeriodicScorer {
+  std::optional<LocalTake> part;
+  CycleScorer scorer;
+  PeriodicScorer(const LocalTake& take, const CycleOptions& options)
+      : part(periodic_part(take, options)), scorer(part ? *part : take) {}
+  PeriodicScorer(const PeriodicScorer&) = delete;  // the scorer refers to `part`
+  PeriodicScorer& operator=(const PeriodicScorer&) = delete;
+};
+
 void check_cycle_length(const LocalTake& take, const CycleOptions& options) {
   const int n = take.num_frames();
   if (n - 1 < options.min_cycle_frames || n < 3) {
@@ -336,12 +392,13 @@ double find_period(const CycleScorer& scorer, const CycleOptions& options) {
 
 double find_period(const LocalTake& take, const CycleOptions& options) {
   check_cycle_length(take, options);
-  return find_period(CycleScorer(take), options);
+  return find_period(PeriodicScorer(take, options).scorer, options);
 }
 
 Cycle find_cycle(const LocalTake& take, const CycleOptions& options) {
   check_cycle_length(take, options);
-  const CycleScorer scorer(take);
+  const PeriodicScorer periodic(take, options);
+  const CycleScorer& scorer = periodic.scorer;
   const double period = find_period(scorer, options);
   const int n = take.num_frames();
   // The start where the cycle closes best, of those where the take moves: standing still (a
@@ -381,7 +438,8 @@ TakeSegments find_cycles(const LocalTake& take, const CycleOptions& options) {
     if (n >= 2) whole_take_one_shot();
     return out;
   }
-  const CycleScorer scorer(take);
+  const PeriodicScorer periodic(take, options);
+  const CycleScorer& scorer = periodic.scorer;
   out.period = find_period(scorer, options);
   // Every start's best closing cycle, its length within 15 % of the period (a long take's pace
   // drifts).

@@ -54,6 +54,9 @@ struct CycleOptions {
 // period (a quadruped's limb pairs in antiphase) is not cut at the half; then refined to a
 // fraction of a frame. Throws InputError naming the take if it is shorter than
 // min_cycle_frames + 1 frames.
+// A loose part of the surface that moves a lot but repeats at no lag (a skirt's chaotic swing,
+// hair) is left out of the scores of find_period, find_cycle and find_cycles, as long as it is
+// less than half the vertices; a Cycle's closure and variation are then the rest's.
 double find_period(const LocalTake& take, const CycleOptions& options);
 
 // The best complete cycle of a cyclic take: find_period's period, started where the closure

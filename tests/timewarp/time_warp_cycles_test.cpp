@@ -135,6 +135,44 @@ TEST(Period, WithinHalfAFrameOfTheTruthOnEveryPeriodicTake) {
   }
 }
 
+// A loose part that moves a lot but repeats at no lag (a skirt's chaotic swing, as synth's
+// dance_skirt walks: their body repeats to 0.0 mm, the skirt by 20-100 mm RMS a gait cycle
+// later however long the walk) is left out of the cycle's scores: a biped with a third more
+// points, each on a random walk of 3 cm a frame, has the biped's own period and a cycle that
+// closes, on a take of little more than one cycle as on three.
+TEST(Period, ALoosePartThatRepeatsAtNoLagIsLeftOut) {
+  for (const auto& [period, frames] : {std::pair{17.2, 21}, std::pair{13.7, 44}}) {
+    constexpr int kLoose = 8;
+    std::mt19937 rng(11);
+    std::normal_distribution<double> step(0.0, 0.03);
+    std::vector<Eigen::Matrix3Xd> loose(static_cast<std::size_t>(frames), Eigen::Matrix3Xd(3, kLoose));
+    for (int k = 0; k < kLoose; ++k) loose[0].col(k) = Eigen::Vector3d(0.1 * k - 0.35, 0.2, 0.6);
+    for (int f = 1; f < frames; ++f) {
+      loose[static_cast<std::size_t>(f)] = loose[static_cast<std::size_t>(f) - 1];
+      for (Eigen::Index i = 0; i < loose[0].size(); ++i) loose[static_cast<std::size_t>(f)].data()[i] += step(rng);
+    }
+    constexpr double kStart = 0.13;  // make_take's
+    const Body body = [&, period = period](double u) {
+      const Eigen::Matrix3Xd b = biped(u);
+      Eigen::Matrix3Xd x(3, b.cols() + kLoose);
+      x << b, loose[static_cast<std::size_t>(std::lround((u - kStart) * period))];
+      return x;
+    };
+    const LocalTake take = make_take("loose", body, period, frames, kStart);
+    const double p = find_period(take, CycleOptions{});
+    EXPECT_NEAR(p, period, 0.5) << frames;
+    const Cycle cycle = find_cycle(take, CycleOptions{});  // throws where it cannot close
+    EXPECT_NEAR(cycle.period, period, 0.5) << frames;
+    EXPECT_LE(cycle.closure_ratio, 0.3) << frames;
+    // The loose part does not close there: the whole surface ends several times further from
+    // its start than the part the cycle is scored on.
+    const double whole = std::sqrt(shape_distance(shape_at(take, cycle.start), shape_at(take, cycle.start + cycle.period)));
+    EXPECT_GT(whole, 3 * cycle.closure_rms) << frames;
+    std::printf("biped with a loose part, %d frames: period %.2f (truth %.1f), closure ratio %.2f, %.1f mm (all of "
+                "it %.1f mm)\n", frames, p, period, cycle.closure_ratio, 1000 * cycle.closure_rms, 1000 * whole);
+  }
+}
+
 // The trap is real: half the period repeats the shape nearly as well as the full period,
 // within a fifth of the range of the mean distance over the lags (the rule that took half a
 // stride for a stride), yet clearly worse than the full period.
