@@ -268,8 +268,8 @@ class CycleScorer {
 
 // The vertices of a take that move a lot but repeat at no lag (loose cloth in a chaotic swing,
 // hair). Per vertex: its variation var (mean squared distance from its mean position) and,
-// at every lag from min_cycle_frames on, the mean squared distance c between its positions
-// that lag apart; unrelated positions give c = 2 var. Loose: at no lag below
+// at every lag from min_cycle_frames on, whole and half frames, the mean squared distance c
+// between its positions that lag apart; unrelated positions give c = 2 var. Loose: at no lag below
 // kLooseRepeat^2 * 2 var, and a variation at least a quarter of the mean vertex's (a vertex
 // that hardly moves is left in: its noise is no swing). Shape only: enough to tell the parts
 // apart.
@@ -283,10 +283,23 @@ std::vector<bool> loose_vertices(const LocalTake& take, const CycleOptions& opti
   Eigen::RowVectorXd var = Eigen::RowVectorXd::Zero(nv);
   for (const Eigen::Matrix3Xd& x : take.shapes) var += (x - mean).colwise().squaredNorm() / n;
   Eigen::RowVectorXd best = Eigen::RowVectorXd::Constant(nv, kInf);
+  // Whole and half-frame lags (the half by linear interpolation): a fast limb of a cycle a
+  // fractional number of frames long repeats at no whole lag much better than half a frame off.
   for (int lag = options.min_cycle_frames; lag <= n - 1; ++lag) {
-    Eigen::RowVectorXd c = Eigen::RowVectorXd::Zero(nv);
-    for (int s = 0; s + lag <= n - 1; ++s) c += (take.shapes[s] - take.shapes[s + lag]).colwise().squaredNorm();
-    best = best.cwiseMin(c / (n - lag));
+    for (const bool half : {false, true}) {
+      if (half && lag + 1 > n - 1) continue;
+      Eigen::RowVectorXd c = Eigen::RowVectorXd::Zero(nv);
+      int count = 0;
+      for (int s = 0; s + lag + (half ? 1 : 0) <= n - 1; ++s, ++count) {
+        const Eigen::Matrix3Xd& a = take.shapes[s];
+        if (half) {
+          c += (a - 0.5 * (take.shapes[s + lag] + take.shapes[s + lag + 1])).colwise().squaredNorm();
+        } else {
+          c += (a - take.shapes[s + lag]).colwise().squaredNorm();
+        }
+      }
+      best = best.cwiseMin(c / count);
+    }
   }
   const double mean_var = var.mean();
   std::vector<bool> loose(static_cast<std::size_t>(nv), false);
@@ -509,7 +522,7 @@ RootTransform root_at_phase(const LocalTake& take, const TakeTiming& timing, dou
   return r;
 }
 
-LocalTake steady_cycle_root(LocalTake take, const TakeTiming& timing, const std::vector<FrameRange>& one_shots) {
+LocalTake steady_cycle_root(LocalTake take, const TakeTiming& timing, const CycleOptions& options) {
   const int n = take.num_frames();
   const double start = timing.start, period = timing.length;
   // Roots about the take's mean position c, so that a heading error of W does not turn into a
@@ -528,14 +541,10 @@ LocalTake steady_cycle_root(LocalTake take, const TakeTiming& timing, const std:
     const double a = std::clamp(x - i, 0.0, 1.0);
     return mix_roots(raw[i], raw[i + 1], a);
   };
-  // Over the frames that loop: a long take's stands and the steps into and out of them (its
-  // one-shot segments) would slow the mean down.
-  auto loops = [&](int x) {
-    for (const FrameRange& r : one_shots) {
-      if (x < r.last && x + period > r.first) return false;
-    }
-    return true;
-  };
+  // Over the frames that loop: a long take's stands and the steps into and out of them would
+  // slow the mean down. [x, x + period] loops if it closes as a cycle would (find_cycles).
+  const PeriodicScorer periodic(take, options);
+  auto loops = [&](int x) { return periodic.scorer.evaluate(x, period).closure_ratio <= options.max_closure_ratio; };
   RootTransform w;
   int count = 0;
   for (const bool all : {false, true}) {

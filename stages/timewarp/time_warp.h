@@ -93,13 +93,12 @@ RootTransform root_at_phase(const LocalTake& take, const TakeTiming& timing, dou
 // advances. The steady root turns at a constant rate along a circular arc (or a straight
 // line): per cycle it moves by the take's mean motion W (root(x + period) root(x)^-1 averaged
 // over every frame x that has a frame one period later and, where any is left, whose
-// [x, x + period] is in no one-shot segment of find_cycles: not in a long take's stands), and
-// it runs through the middle of the
+// [x, x + period] closes as a cycle (closure_ratio at most options.max_closure_ratio): not in
+// or across a long take's stands), and it runs through the middle of the
 // sway (over the cycle [start, start + period], its heading and position average to the
 // per-frame roots'). Returns the take re-rooted: these roots, and the shapes expressed
 // relative to them (the frames themselves unchanged), so the sway is kept in the body shape.
-LocalTake steady_cycle_root(LocalTake take, const TakeTiming& timing,
-                            const std::vector<FrameRange>& one_shots = {});
+LocalTake steady_cycle_root(LocalTake take, const TakeTiming& timing, const CycleOptions& options = {});
 
 Warp identity_warp(int intervals);
 

@@ -34,8 +34,7 @@ LocalTake make_local_take(const std::string& name, std::vector<Eigen::Matrix3Xd>
 }
 
 WarpedClass warp_class(const MotionClassConfig& motion, double fps, const Mesh& template_mesh,
-                       std::vector<LocalTake> takes, const TimewarpOptions& options,
-                       const std::vector<TakeSegments>& segments) {
+                       std::vector<LocalTake> takes, const TimewarpOptions& options) {
   if (takes.size() < 2 || takes.size() > 3) {
     std::string names;
     for (const LocalTake& t : takes) names += (names.empty() ? "" : ", ") + t.name;
@@ -95,8 +94,7 @@ WarpedClass warp_class(const MotionClassConfig& motion, double fps, const Mesh& 
   // A one-shot take's root is its real motion (a jump travels), kept as estimated.
   if (motion.cyclic) {
     tbb::parallel_for(std::size_t{0}, takes.size(), [&](std::size_t k) {
-      takes[k] = steady_cycle_root(std::move(takes[k]), timing[k],
-                                   k < segments.size() ? segments[k].one_shots : std::vector<FrameRange>{});
+      takes[k] = steady_cycle_root(std::move(takes[k]), timing[k], options.cycle());
     });
   }
 
@@ -185,7 +183,7 @@ void run_timewarp(const Session& session, const StageArgs& args) {
       segments[k] = find_cycles(takes[k], options.cycle());
     });
     const WarpedClass warped = warp_class(motion, config.fps, input.template_mesh,
-                                          std::move(takes), options, segments);
+                                          std::move(takes), options);
     write_warped_class(staged.path() / (motion.name + ".twarp"), warped);
     write_file_atomic(staged.path() / (motion.name + ".json"),
                       warped_class_summary(warped).dump(1));

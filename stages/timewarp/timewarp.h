@@ -65,11 +65,8 @@ LocalTake make_local_take(const std::string& name, std::vector<Eigen::Matrix3Xd>
 
 // Registers and resamples one class. Throws InputError for a class with fewer than 2 or more
 // than 3 takes, takes that do not fit together, or a cycle that cannot be closed (naming it).
-// `segments`: find_cycles of each take, or empty; a cyclic take's steady root moves at its
-// pace outside its one-shot segments (steady_cycle_root).
 WarpedClass warp_class(const MotionClassConfig& motion, double fps, const Mesh& template_mesh,
-                       std::vector<LocalTake> takes, const TimewarpOptions& options,
-                       const std::vector<TakeSegments>& segments = {});
+                       std::vector<LocalTake> takes, const TimewarpOptions& options);
 
 void run_timewarp(const Session& session, const StageArgs& args);
 
