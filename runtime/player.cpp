@@ -73,8 +73,8 @@ class LineParser {
 std::string csv_escape(const std::string& s) { return s; }  // space names have no commas
 
 // One transition as a JSON line; times < 0 (null) when it was replaced before it got there.
-// `worst_step`: the largest per-frame vertex displacement from the request to the end of the
-// transition (its cross-fade included) [m], frames `frame_seconds` apart.
+// `worst_step`: the largest per-frame vertex displacement from the switch to the end of the
+// cross-fade (CrossFadeWindow) [m], frames `frame_seconds` apart.
 std::string transition_json(const MotionGraph& graph, const TransitionOptions& search,
                             const TransitionRecord& r, double worst_step, double frame_seconds) {
   const TransitionPath& path = r.path;
@@ -207,6 +207,7 @@ class Playback {
   TransitionRecord open_;  // the transition being played, not yet written
   double open_step_ = 0;   // its worst per-frame vertex step so far [m]
   VertexJumpMeter jump_meter_;
+  CrossFadeWindow window_;
 };
 
 bool Playback::play_frame(int f) {
@@ -288,6 +289,7 @@ std::string Playback::apply(const ScriptEvent& e) {
 // is added to the frame's event text.
 void Playback::track_transitions(double step, std::string& event_text) {
   const TransitionRecord& r = character_.last_transition();
+  const bool in_fade = window_.counts(r, character_.state());
   if (open_.request_time >= 0 && r.request_time != open_.request_time) {
     write_open_transition();
     open_ = TransitionRecord{};
@@ -295,7 +297,7 @@ void Playback::track_transitions(double step, std::string& event_text) {
   if (r.request_time >= 0 && r.request_time != written_request_) {
     if (open_.request_time != r.request_time) open_step_ = 0;
     open_ = r;
-    open_step_ = std::max(open_step_, step);
+    if (in_fade) open_step_ = std::max(open_step_, step);
     if (r.arrive_time >= 0 && !character_.state().fading) {
       write_open_transition();
       written_request_ = r.request_time;

@@ -27,8 +27,8 @@
 // Outputs in the output folder: meshes/frame_NNNNN.ply (world coordinates, normals; every
 // `mesh_every` frame), frames.csv (one row per frame: state, root, cross-fade, events, search
 // time), transitions.jsonl (one JSON object per transition: request / switch / arrival times,
-// latency, E_S, E_L, path, and its worst per-frame vertex step from the request to the end of
-// its cross-fade against the two motions' own 99th percentile: max_vertex_step_mm,
+// latency, E_S, E_L, path, and its worst per-frame vertex step from the switch to the end of
+// its cross-fade (CrossFadeWindow) against the two motions' own 99th percentile: max_vertex_step_mm,
 // source_step_p99_mm, target_step_p99_mm, jump_ratio), summary.json. A FrameObserver sees every frame: fourd-play's
 // --render draws them (runtime/player/render.h).
 #include <filesystem>

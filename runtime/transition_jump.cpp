@@ -57,6 +57,15 @@ double VertexJumpMeter::add(const CharacterFrame& frame) {
   return std::sqrt(worst);
 }
 
+bool CrossFadeWindow::counts(const TransitionRecord& r, const CharacterState& s) {
+  const bool switched = r.switch_time >= 0;
+  const bool first = switched && r.switch_time != counted_switch_;
+  const bool in = first || (switched && (s.fading || was_fading_));
+  if (first) counted_switch_ = r.switch_time;
+  was_fading_ = s.fading;
+  return in;
+}
+
 TransitionJump measure_transition_jump(Character& character, const MotionState& from,
                                        const TransitionTarget& to, double frame_seconds,
                                        double max_seconds) {
@@ -64,13 +73,15 @@ TransitionJump measure_transition_jump(Character& character, const MotionState& 
   const MotionGraph& graph = character.graph();
   character.reset(from.space, from.p, from.t);
   VertexJumpMeter meter;
+  CrossFadeWindow window;
   meter.add(character.frame());
   character.request_motion(to.space, to.p, to.t);
   bool arrived = false;
   for (double time = 0; time < max_seconds; time += frame_seconds) {
     const CharacterFrame& frame = character.step(frame_seconds);
-    out.worst_m = std::max(out.worst_m, meter.add(frame));
+    const double step = meter.add(frame);
     const TransitionRecord& r = character.last_transition();
+    if (window.counts(r, character.state())) out.worst_m = std::max(out.worst_m, step);
     arrived = arrived || r.arrive_time >= 0;
     if (arrived && !character.state().fading) break;
   }

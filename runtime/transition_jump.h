@@ -27,9 +27,23 @@ class VertexJumpMeter {
   std::vector<Vec3f> previous_, current_;
 };
 
+// Which frames a transition's jump is measured on: from the frame that crosses the switch to
+// the last frame of the cross-fade. Before the switch the source plays as captured, and its
+// own fastest frames (a dance's arm swing at twice its 99th percentile) are no lurch.
+class CrossFadeWindow {
+ public:
+  // Whether the frame just stepped, after which the character's last transition is `r` and its
+  // state `s`, is in the window. Call once per frame, in order.
+  bool counts(const TransitionRecord& r, const CharacterState& s);
+
+ private:
+  double counted_switch_ = -1;  // switch_time of the last switch whose frame was counted
+  bool was_fading_ = false;
+};
+
 struct TransitionJump {
   bool played = false;       // the transition switched and arrived within the time allowed
-  double worst_m = 0;        // largest per-frame vertex displacement while it played [m]
+  double worst_m = 0;        // largest per-frame vertex displacement in its CrossFadeWindow [m]
   double source_p99_m = 0;   // motion_displacement_p99 of the source at the request's parameter
   double target_p99_m = 0;   // and of the target at the requested parameter
   double ratio() const {
@@ -40,7 +54,7 @@ struct TransitionJump {
 
 // Plays one request on `character` (reset to `from`, then request_motion(to)) at frames
 // `frame_seconds` apart until the requested state is reached and the cross-fade is over, at
-// most `max_seconds`, and measures the jump from the request to then.
+// most `max_seconds`, and measures the jump over the frames of its CrossFadeWindow.
 TransitionJump measure_transition_jump(Character& character, const MotionState& from,
                                        const TransitionTarget& to, double frame_seconds,
                                        double max_seconds = 30);

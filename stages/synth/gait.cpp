@@ -3,6 +3,17 @@
 // (heel strike, flat foot, heel-off on the ball of the foot) and swing on smooth curves
 // between footholds; the legs follow by two-bone IK from a pelvis whose height is the highest
 // smooth, periodic curve at which both legs reach their feet.
+//
+// Pauses (MotionSpec::pauses): the gait's amplitude falls from 1 to 0 over a gait cycle and
+// rises again over a cycle after the stand (minimum jerk). The root travels and turns at the
+// amplitude times the gait's speed and turn rate, so the footholds (where the root is at
+// mid-stance) close up into two feet side by side; the pelvis's bob, sway, roll and twist, the
+// lean and the arm swing shrink with it, and the pelvis settles from its bobbing curve to a
+// standing height. A step's lift and the feet's roll shrink with the step's length, so a foot
+// never slides. The cadence is kept: standing, a "step" goes from a foothold to the same one.
+// The root is still from about a cycle before the stand to about a cycle after it, so that no
+// step that lands, rolls or lifts off in the stand moves: the last steps close up and the first
+// one sets off around it. The body sways a few millimetres over the planted feet.
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -105,23 +116,98 @@ Vector3d hermite(const Vector3d& p0, const Vector3d& m0, const Vector3d& p1, con
   return (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * m0 + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * m1;
 }
 
+// ∫_0^x minimum_jerk: 2.5 x^4 - 3 x^5 + x^6 on [0, 1] (clamped; 0.5 at 1).
+double minimum_jerk_integral(double x) {
+  x = std::clamp(x, 0.0, 1.0);
+  const double x4 = x * x * x * x;
+  return x4 * (2.5 - 3 * x + x * x);
+}
+
+// How far the gait is under way at each time: 1 walking, 0 in a stand [t0, t1], a minimum-jerk
+// ramp of `ramp` seconds down before each stand and up after it.
+class PauseTiming {
+ public:
+  PauseTiming() = default;
+  // The root is still over [at - before, last frame + after] of every pause [s].
+  PauseTiming(const MotionSpec& spec, double fps, double ramp, double before, double after) : ramp_(ramp) {
+    for (const PauseSpec& p : spec.pauses) {
+      const double t0 = p.at / fps - before, t1 = (p.at + p.frames - 1) / fps + after;
+      if (!stands_.empty() && t0 - ramp < stands_.back().second + ramp) {
+        throw ConfigError(fmt::format("take {}: the stand from frame {} comes too soon after the one before: "
+                                      "setting off, walking and slowing down again need {:.0f} frames between two stands",
+                                      spec.take, p.at, std::ceil((2 * ramp + before + after) * fps)));
+      }
+      stands_.emplace_back(t0, t1);
+    }
+  }
+
+  bool empty() const { return stands_.empty(); }
+
+  double amplitude(double t) const {
+    double a = 1;
+    for (const auto& stand : stands_) {
+      if (t < stand.first) {
+        a *= 1 - minimum_jerk((t - stand.first + ramp_) / ramp_);
+      } else if (t <= stand.second) {
+        a = 0;
+      } else {
+        a *= minimum_jerk((t - stand.second) / ramp_);
+      }
+    }
+    return a;
+  }
+
+  // ∫_0^t amplitude: the time the gait would have taken at full pace to get as far [s].
+  double walked(double t) const {
+    double w = t;
+    for (const auto& stand : stands_) {
+      const double after = std::clamp((t - stand.second) / ramp_, 0.0, 1.0);
+      w -= ramp_ * minimum_jerk_integral((t - stand.first + ramp_) / ramp_) +
+           std::clamp(t - stand.first, 0.0, stand.second - stand.first) +
+           ramp_ * (after - minimum_jerk_integral(after));
+    }
+    return w;
+  }
+
+ private:
+  std::vector<std::pair<double, double>> stands_;  // [first, last] standing time [s]
+  double ramp_ = 1;
+};
+
 class GaitGenerator {
  public:
   GaitGenerator(const Rig& rig, const MotionSpec& spec, double fps) : rig_(rig), spec_(spec), fps_(fps) {
     gait_ = make_gait(rig, spec, fps, &cycle_frames_);
     start_ = start_state(spec);
-    fit_pelvis_height();
+    fit_pelvis_height();  // at full pace: before the pauses are set
+    if (!spec.pauses.empty()) {
+      // A foot that lands before the stand rolls onto it until heel_rocker of its stance; a
+      // foot that stands into the stand lifts its heel from heel_off: the footholds of those
+      // steps (root at mid-stance) must be where the root stands.
+      const double before = (1 - (0.5 - gait_.heel_rocker) * gait_.duty) * gait_.cycle;
+      const double after = (1 + (0.5 - gait_.heel_off) * gait_.duty) * gait_.cycle;
+      pauses_ = PauseTiming(spec, fps, gait_.cycle, before + 1e-6, after + 1e-6);
+      fit_stand_height();
+    }
   }
 
   MotionClip run() const {
-    return sample_cyclic(rig_.skeleton, spec_, fps_, cycle_frames_, [&](double t) { return root(t); },
-                         [&](double t) { return phase(t); }, [&](double t) { return pose(t); });
+    MotionClip clip = sample_cyclic(rig_.skeleton, spec_, fps_, cycle_frames_, [&](double t) { return root(t); },
+                                    [&](double t) { return phase(t); }, [&](double t) { return pose(t); });
+    if (!pauses_.empty()) {
+      for (int f = 0; f < spec_.frames; ++f) clip.amplitude.push_back(pauses_.amplitude(f / fps_));
+    }
+    return clip;
   }
 
  private:
   double phase(double t) const { return spec_.start_phase + t / gait_.cycle; }
 
-  RootState root(double t) const {
+  // The gait's amplitude at time t: 1 but around a pause.
+  double amp(double t) const { return pauses_.empty() ? 1.0 : pauses_.amplitude(t); }
+
+  RootState root(double time) const {
+    const double t = pauses_.empty() ? time : pauses_.walked(time);
     RootState r;
     r.heading = start_.heading + gait_.omega * t;
     const double v = gait_.speed;
@@ -144,8 +230,20 @@ class GaitGenerator {
     const double t_mid = (static_cast<double>(n) + foot_phase_offset(side) + gait_.duty / 2 - spec_.start_phase) * gait_.cycle;
     const RootState r = root(t_mid);
     const double lateral = side == 0 ? gait_.half_width : -gait_.half_width;
-    *ground = r.position + Eigen::Rotation2Dd(r.heading) * Vector2d(gait_.plant_offset, lateral);
+    *ground = r.position + Eigen::Rotation2Dd(r.heading) * Vector2d(gait_.plant_offset * amp(t_mid), lateral);
     *yaw = r.heading;
+  }
+
+  // How much of a step from stance n of a foot to stance n + 1 is taken: 1 at a quarter of a
+  // full stride or more, down to 0 for a step on the spot; the lift and the feet's roll scale
+  // with it.
+  double step_scale(int side, long n) const {
+    if (pauses_.empty()) return 1.0;
+    Vector2d g0, g1;
+    double yaw0, yaw1;
+    foothold(side, n, &g0, &yaw0);
+    foothold(side, n + 1, &g1, &yaw1);
+    return std::min(1.0, (g1 - g0).norm() / (0.25 * gait_.speed * gait_.cycle));
   }
 
   double stance_pitch(double sigma) const {
@@ -158,7 +256,9 @@ class GaitGenerator {
     Vector2d ground;
     double yaw;
     foothold(side, n, &ground, &yaw);
-    return planted_foot(rig_, ground, yaw, stance_pitch(sigma));
+    // Rolling off the heel ends the step that landed, lifting the heel starts the next one.
+    const double a = sigma < gait_.heel_rocker ? step_scale(side, n - 1) : step_scale(side, n);
+    return planted_foot(rig_, ground, yaw, stance_pitch(sigma) * a);
   }
 
   FootState swing(int side, long n, double s) const {
@@ -168,16 +268,17 @@ class GaitGenerator {
     const Vector3d v0 = (lift_off.ankle - stance(side, n, 1 - eps).ankle) / (eps * stance_time);
     const Vector3d v1 = (stance(side, n + 1, eps).ankle - touch_down.ankle) / (eps * stance_time);
     Vector3d ankle = hermite(lift_off.ankle, v0 * swing_time, touch_down.ankle, v1 * swing_time, s);
+    const double a = step_scale(side, n);
     const double bump = std::sin(M_PI * std::pow(s, std::log(0.5) / std::log(gait_.lift_peak)));
-    ankle.z() += gait_.lift * bump * bump;
+    ankle.z() += a * gait_.lift * bump * bump;
     Vector2d g0, g1;
     double yaw0, yaw1;
     foothold(side, n, &g0, &yaw0);
     foothold(side, n + 1, &g1, &yaw1);
     const double yaw = yaw0 + angle_difference(yaw0, yaw1) * smoothstep01(s);
-    const double pitch = gait_.toe_off_pitch * (1 - smoothstep01(s / 0.45)) +
-                         gait_.heel_strike_pitch * smoothstep01((s - 0.55) / 0.45);
-    const double toe_bend = -gait_.toe_off_pitch * (1 - smoothstep01(s / 0.3));
+    const double pitch = a * (gait_.toe_off_pitch * (1 - smoothstep01(s / 0.45)) +
+                              gait_.heel_strike_pitch * smoothstep01((s - 0.55) / 0.45));
+    const double toe_bend = -a * gait_.toe_off_pitch * (1 - smoothstep01(s / 0.3));
     return free_foot(ankle, yaw, pitch, toe_bend);
   }
 
@@ -193,16 +294,25 @@ class GaitGenerator {
   double turn_lean() const { return -std::atan(gait_.speed * gait_.omega / kGravity); }
 
   Matrix3d pelvis_rotation(double t) const {
-    const double phi = phase(t), mid = gait_.duty / 2;
-    const double twist = -gait_.twist * std::cos(2 * M_PI * phi);
-    const double roll = gait_.roll * std::cos(2 * M_PI * (phi - mid));
-    return rot_z(root(t).heading + twist) * rot_x(roll + turn_lean()) * rot_y(0.5 * gait_.lean);
+    const double phi = phase(t), mid = gait_.duty / 2, a = amp(t);
+    const double twist = -a * gait_.twist * std::cos(2 * M_PI * phi);
+    const double roll = a * gait_.roll * std::cos(2 * M_PI * (phi - mid));
+    return rot_z(root(t).heading + twist) * rot_x(roll + a * a * turn_lean()) * rot_y(0.5 * a * gait_.lean);
+  }
+
+  // Standing, the body sways over the feet as a person's does (a few millimetres, slowly).
+  Vector2d stand_sway(double t) const {
+    const double k = rig_.leg_length() / kNominalLeg;
+    return Vector2d(0.004 * k * std::sin(2 * M_PI * 0.17 * t + 1), 0.007 * k * std::sin(2 * M_PI * 0.23 * t));
   }
 
   Vector2d pelvis_xy(double t) const {
     const RootState r = root(t);
-    const double sway = gait_.sway * std::cos(2 * M_PI * (phase(t) - gait_.duty / 2));
-    return r.position + Eigen::Rotation2Dd(r.heading) * Vector2d(0, sway);
+    const double a = amp(t);
+    const double sway = a * gait_.sway * std::cos(2 * M_PI * (phase(t) - gait_.duty / 2));
+    Vector2d offset(0, sway);
+    if (a < 1) offset += (1 - a) * stand_sway(t);
+    return r.position + Eigen::Rotation2Dd(r.heading) * offset;
   }
 
   double nominal_height(double phi) const {
@@ -249,27 +359,58 @@ class GaitGenerator {
     height_cos_[0] -= violation;
   }
 
+  // The pelvis's height standing still: the nominal one, lowered until the legs reach the feet
+  // side by side wherever the standing sway puts the pelvis.
+  void fit_stand_height() {
+    constexpr double kReach = 0.996;
+    const RootState r = root(0);
+    const Matrix3d pelvis = rot_z(r.heading);
+    std::array<Vector3d, 2> ankles;
+    for (int side = 0; side < 2; ++side) {
+      const double lateral = side == 0 ? gait_.half_width : -gait_.half_width;
+      ankles[static_cast<std::size_t>(side)] =
+          planted_foot(rig_, r.position + Eigen::Rotation2Dd(r.heading) * Vector2d(0, lateral), r.heading, 0).ankle;
+    }
+    const double k = rig_.leg_length() / kNominalLeg;
+    stand_height_ = rig_.pelvis_height - gait_.pelvis_drop;
+    for (double dx : {-0.004 * k, 0.004 * k}) {
+      for (double dy : {-0.007 * k, 0.007 * k}) {
+        const Vector2d xy = r.position + Eigen::Rotation2Dd(r.heading) * Vector2d(dx, dy);
+        stand_height_ = std::min(stand_height_, max_pelvis_height(rig_, xy, pelvis, ankles, kReach));
+      }
+    }
+  }
+
   WorldPose pose(double t) const {
     const Skeleton& sk = rig_.skeleton;
     WorldPose pose(sk.size());
-    const double phi = phase(t);
+    const double phi = phase(t), a = amp(t);
     const double heading = root(t).heading;
     const Vector2d xy = pelvis_xy(t);
-    pose.root = Vector3d(xy.x(), xy.y(), pelvis_height(phi));
     const Matrix3d pelvis = pelvis_rotation(t);
-    const Matrix3d chest = rot_z(heading + gait_.chest_twist * std::cos(2 * M_PI * phi)) * rot_x(turn_lean()) *
-                           rot_y(gait_.lean);
+    const std::array<FootState, 2> feet = {foot(0, t), foot(1, t)};
+    double height = pelvis_height(phi);
+    if (a < 1) {
+      constexpr double kReach = 0.996;
+      height = std::min(a * height + (1 - a) * stand_height_,
+                        max_pelvis_height(rig_, xy, pelvis, {feet[0].ankle, feet[1].ankle}, kReach));
+    }
+    pose.root = Vector3d(xy.x(), xy.y(), height);
+    const Matrix3d chest = rot_z(heading + a * gait_.chest_twist * std::cos(2 * M_PI * phi)) *
+                           rot_x(a * a * turn_lean()) * rot_y(a * gait_.lean);
     // Look a little into the turn.
-    const double look = std::clamp(0.3 * gait_.omega, -25 * kDeg, 25 * kDeg);
-    const Matrix3d head = rot_z(heading + look) * rot_x(0.5 * turn_lean());
+    const double look = std::clamp(a * 0.3 * gait_.omega, -25 * kDeg, 25 * kDeg);
+    const Matrix3d head = rot_z(heading + look) * rot_x(0.5 * a * a * turn_lean());
     set_trunk(rig_, pelvis, chest, head, pose);
-    // Arms swing with the opposite leg, slightly late.
-    const double swing = gait_.arm_swing * std::cos(2 * M_PI * (phi - 0.03));
+    // Arms swing with the opposite leg, slightly late; standing, they hang, elbows a little bent.
+    constexpr double kStandElbow = 8 * kDeg;
+    const double swing = a * gait_.arm_swing * std::cos(2 * M_PI * (phi - 0.03));
+    const double elbow = a < 1 ? a * gait_.elbow + (1 - a) * kStandElbow : gait_.elbow;
     for (int side = 0; side < 2; ++side) {
       const double s = side == 0 ? -swing : swing;
-      hang_arm(rig_, side, s, gait_.elbow + gait_.elbow_swing * std::max(0.0, s / gait_.arm_swing), pose);
+      hang_arm(rig_, side, s, elbow + gait_.elbow_swing * std::max(0.0, s / gait_.arm_swing), pose);
     }
-    solve_legs(rig_, {foot(0, t), foot(1, t)}, pose);
+    solve_legs(rig_, feet, pose);
     return pose;
   }
 
@@ -280,6 +421,8 @@ class GaitGenerator {
   int cycle_frames_ = 0;
   RootState start_;
   std::vector<double> height_cos_, height_sin_;
+  PauseTiming pauses_;       // none: walking throughout
+  double stand_height_ = 0;  // the pelvis's height standing still [m]
 };
 
 }  // namespace

@@ -14,6 +14,23 @@ namespace {
 // Speed, heading rate and cycle length of a cyclic motion, measured on its root over whole
 // gait cycles (the pelvis sways about the root with the period of the cycle).
 void measure_cyclic(MotionClip& clip) {
+  if (!clip.amplitude.empty()) {
+    // Pauses: the walking bouts' speed and turn rate, over the steps at full pace.
+    double path = 0, turn = 0, seconds = 0;
+    for (std::size_t f = 0; f + 1 < clip.root.size(); ++f) {
+      if (clip.amplitude[f] < 1 || clip.amplitude[f + 1] < 1) continue;
+      path += (clip.root[f + 1].position - clip.root[f].position).norm();
+      turn += clip.root[f + 1].heading - clip.root[f].heading;
+      seconds += 1 / clip.fps;
+    }
+    if (!(seconds > 0)) {
+      throw ConfigError(fmt::format("take {}: its pauses leave no two frames in a row at full pace", clip.spec.take));
+    }
+    clip.parameters = {{"speed", path / seconds},
+                       {"direction_deg_per_s", turn * 180 / M_PI / seconds},
+                       {"cycle_s", clip.cycle_frames / clip.fps}};
+    return;
+  }
   const int frames = static_cast<int>(clip.root.size());
   const int cycle = static_cast<int>(std::lround(clip.cycle_frames));
   const int whole = cycle > 0 ? (frames - 1) / cycle * cycle : 0;
@@ -69,6 +86,19 @@ void MotionSpec::check() const {
                                   "(got {} and {})", take, jump_height, jump_length));
   }
   if (frames < 2) throw ConfigError(fmt::format("take {}: frames must be at least 2, not {}", take, frames));
+  if (!pauses.empty() && kind != "walk" && kind != "turn") {
+    throw ConfigError(fmt::format("take {}: only a walk or a turn can pause, not a {}", take, kind));
+  }
+  for (std::size_t i = 0; i < pauses.size(); ++i) {
+    if (pauses[i].at + pauses[i].frames > frames) {
+      throw ConfigError(fmt::format("take {}: pause {} (frames {} to {}) ends after the take's {} frames", take, i,
+                                    pauses[i].at, pauses[i].at + pauses[i].frames - 1, frames));
+    }
+    if (i > 0 && pauses[i].at < pauses[i - 1].at + pauses[i - 1].frames) {
+      throw ConfigError(fmt::format("take {}: pause {} starts at frame {}, before pause {} ends", take, i,
+                                    pauses[i].at, i - 1));
+    }
+  }
 }
 
 MotionClip generate_motion(const Skeleton& skeleton, const MotionSpec& spec, double fps) {

@@ -10,6 +10,20 @@
 
 namespace fourd::synth {
 
+// A stand in a walk or a turn: the performer slows to a stop over one gait cycle, stands still
+// (feet planted, weight swaying a little) for `frames` frames from frame `at`, and sets off
+// again over one gait cycle.
+struct PauseSpec {
+  int at = 0;      // first frame standing still
+  int frames = 1;  // frames standing still
+
+  template <class V>
+  void visit(V& v) {
+    v("at", at, "first frame of the stand", Range{0, 100000});
+    v("frames", frames, "frames standing still", Range{1, 100000});
+  }
+};
+
 // One take of the synthetic database. Only the fields of its kind are used.
 struct MotionSpec {
   std::string take;       // take name, e.g. "walk_slow"
@@ -28,6 +42,9 @@ struct MotionSpec {
   double start_heading = 0;  // heading of kForward at frame 0 [deg], about +z
   std::vector<double> start_position = {0, 0};  // root ground position at frame 0 [m]
   double start_phase = 0;    // cyclic motions: gait phase at frame 0 in [0,1)
+  // walk, turn: stands between walking bouts, in order, a stand's slowing and setting off
+  // (one gait cycle each) apart from the next's
+  std::vector<PauseSpec> pauses;
 
   template <class V>
   void visit(V& v) {
@@ -44,6 +61,8 @@ struct MotionSpec {
     v("start_heading", start_heading, "heading at frame 0 [deg]", Range{-360, 360});
     v("start_position", start_position, "ground position at frame 0 [m]");
     v("start_phase", start_phase, "gait phase at frame 0", Range{0, 1});
+    v("pauses", pauses, "walk, turn: stands [{at: first frame, frames: how many}], slowing and setting off "
+      "over a gait cycle each");
   }
   void check() const;  // kind known, vectors of the right length
 };
@@ -65,11 +84,15 @@ struct MotionClip {
   std::vector<double> phase;        // #frames, in [0,1): gait cycle phase, or normalised time
                                     // for one-shot motions (jump, reach, dance)
   double cycle_frames = 0;          // cyclic motions: frames per gait cycle (0 otherwise)
+  // A walk or turn with pauses: per frame, how far the gait is under way (1 walking, 0
+  // standing still, between them slowing down or setting off); empty without pauses.
+  std::vector<double> amplitude;
   // Parameters measured on the generated motion itself (ground truth for validation), e.g.
   // {"speed": 1.21, "direction_deg_per_s": 0} or {"jump_length": 1.2, "jump_height": 0.3}.
   //   walk, run, turn, trot, gallop: speed [m/s] (root path length over whole gait cycles / their
   //     duration), direction_deg_per_s (heading change over whole cycles / duration),
-  //     cycle_s (gait cycle duration)
+  //     cycle_s (gait cycle duration); with pauses, speed and direction over the frames at full
+  //     pace only
   //   jump: jump_length [m] (horizontal distance between the feet's stances before and after),
   //     jump_height [m] (highest pelvis height minus the standing pelvis height at frame 0)
   //   reach: reach_x, reach_y, reach_z [m] (right palm centre while holding at the target, in

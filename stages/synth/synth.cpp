@@ -101,6 +101,12 @@ nlohmann::json take_json(const MotionClip& clip, double s) {
                {"start_heading", clip.spec.start_heading},
                {"start_position", scaled(clip.spec.start_position, s)},
                {"start_phase", clip.spec.start_phase}};
+  if (!clip.spec.pauses.empty()) {
+    nlohmann::json pauses = nlohmann::json::array();
+    for (const PauseSpec& p : clip.spec.pauses) pauses.push_back({{"at", p.at}, {"frames", p.frames}});
+    j["spec"]["pauses"] = pauses;
+    j["amplitude"] = clip.amplitude;
+  }
   nlohmann::json params = nlohmann::json::object();
   for (const auto& [name, value] : clip.parameters) {
     params[name] = is_length_parameter(name) ? value * s : value;
@@ -259,6 +265,9 @@ void run_synth(const Session& session, const StageArgs& args) {
     }
     if (options.character.body == "human") {
       for (const char* key : CharacterOptions::kBodyKeys) used["character"].remove(key);
+    }
+    for (std::size_t i = 0; i < options.takes.size(); ++i) {
+      if (options.takes[i].pauses.empty()) used["takes"][i].remove("pauses");
     }
     YAML::Emitter out;
     out << used;

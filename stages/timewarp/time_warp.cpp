@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <optional>
 
 #include "pipeline/core/error.h"
 
@@ -265,6 +266,74 @@ class CycleScorer {
   int n_;
 };
 
+// The vertices of a take that move a lot but repeat at no lag (loose cloth in a chaotic swing,
+// hair). Per vertex: its variation var (mean squared distance from its mean position) and,
+// at every lag from min_cycle_frames on, whole and half frames, the mean squared distance c
+// between its positions that lag apart; unrelated positions give c = 2 var. Loose: at no lag below
+// kLooseRepeat^2 * 2 var, and a variation at least a quarter of the mean vertex's (a vertex
+// that hardly moves is left in: its noise is no swing). Shape only: enough to tell the parts
+// apart.
+constexpr double kLooseRepeat = 0.25;
+
+std::vector<bool> loose_vertices(const LocalTake& take, const CycleOptions& options) {
+  const int n = take.num_frames();
+  const Eigen::Index nv = take.shapes[0].cols();
+  Eigen::Matrix3Xd mean = Eigen::Matrix3Xd::Zero(3, nv);
+  for (const Eigen::Matrix3Xd& x : take.shapes) mean += x / n;
+  Eigen::RowVectorXd var = Eigen::RowVectorXd::Zero(nv);
+  for (const Eigen::Matrix3Xd& x : take.shapes) var += (x - mean).colwise().squaredNorm() / n;
+  Eigen::RowVectorXd best = Eigen::RowVectorXd::Constant(nv, kInf);
+  // Whole and half-frame lags (the half by linear interpolation): a fast limb of a cycle a
+  // fractional number of frames long repeats at no whole lag much better than half a frame off.
+  for (int lag = options.min_cycle_frames; lag <= n - 1; ++lag) {
+    for (const bool half : {false, true}) {
+      if (half && lag + 1 > n - 1) continue;
+      Eigen::RowVectorXd c = Eigen::RowVectorXd::Zero(nv);
+      int count = 0;
+      for (int s = 0; s + lag + (half ? 1 : 0) <= n - 1; ++s, ++count) {
+        const Eigen::Matrix3Xd& a = take.shapes[s];
+        if (half) {
+          c += (a - 0.5 * (take.shapes[s + lag] + take.shapes[s + lag + 1])).colwise().squaredNorm();
+        } else {
+          c += (a - take.shapes[s + lag]).colwise().squaredNorm();
+        }
+      }
+      best = best.cwiseMin(c / count);
+    }
+  }
+  const double mean_var = var.mean();
+  std::vector<bool> loose(static_cast<std::size_t>(nv), false);
+  for (Eigen::Index v = 0; v < nv; ++v) {
+    loose[static_cast<std::size_t>(v)] = var[v] >= 0.25 * mean_var && best[v] > kLooseRepeat * kLooseRepeat * 2 * var[v];
+  }
+  return loose;
+}
+
+// The take without its loose vertices, when it has some and they are fewer than half: what
+// the cycle is scored on. Without: nothing (score the take itself).
+std::optional<LocalTake> periodic_part(const LocalTake& take, const CycleOptions& options) {
+  if (take.num_frames() - 1 < options.min_cycle_frames) return std::nullopt;
+  const std::vector<bool> loose = loose_vertices(take, options);
+  std::vector<Eigen::Index> keep;
+  for (std::size_t v = 0; v < loose.size(); ++v) {
+    if (!loose[v]) keep.push_back(static_cast<Eigen::Index>(v));
+  }
+  if (keep.size() == loose.size() || 2 * keep.size() < loose.size()) return std::nullopt;
+  LocalTake part = take;
+  for (Eigen::Matrix3Xd& x : part.shapes) x = Eigen::Matrix3Xd(x(Eigen::all, keep));
+  return part;
+}
+
+// A scorer of the take's periodic part (periodic_part), or of the take.
+struct PeriodicScorer {
+  std::optional<LocalTake> part;
+  CycleScorer scorer;
+  PeriodicScorer(const LocalTake& take, const CycleOptions& options)
+      : part(periodic_part(take, options)), scorer(part ? *part : take) {}
+  PeriodicScorer(const PeriodicScorer&) = delete;  // the scorer refers to `part`
+  PeriodicScorer& operator=(const PeriodicScorer&) = delete;
+};
+
 void check_cycle_length(const LocalTake& take, const CycleOptions& options) {
   const int n = take.num_frames();
   if (n - 1 < options.min_cycle_frames || n < 3) {
@@ -336,23 +405,29 @@ double find_period(const CycleScorer& scorer, const CycleOptions& options) {
 
 double find_period(const LocalTake& take, const CycleOptions& options) {
   check_cycle_length(take, options);
-  return find_period(CycleScorer(take), options);
+  return find_period(PeriodicScorer(take, options).scorer, options);
 }
 
 Cycle find_cycle(const LocalTake& take, const CycleOptions& options) {
   check_cycle_length(take, options);
-  const CycleScorer scorer(take);
+  const PeriodicScorer periodic(take, options);
+  const CycleScorer& scorer = periodic.scorer;
   const double period = find_period(scorer, options);
   const int n = take.num_frames();
-  // The start where the cycle closes best.
-  int start = 0;
-  double best_total = kInf;
+  // The start where the cycle closes best, of those where the take moves: standing still (a
+  // long take's pause) closes best of all, but its state varies less still (closure_ratio
+  // above max_closure_ratio), and it is no cycle.
   const double w = CycleScorer::velocity_weight(period);
-  for (int s = 0; s + period <= n - 1 + 1e-9; ++s) {
-    const double total = scorer.closure(s, period).total(w);
-    if (total < best_total) best_total = total, start = s;
+  std::vector<std::pair<double, int>> starts;
+  for (int s = 0; s + period <= n - 1 + 1e-9; ++s) starts.emplace_back(scorer.closure(s, period).total(w), s);
+  if (starts.empty()) starts.emplace_back(kInf, 0);
+  std::stable_sort(starts.begin(), starts.end(),
+                   [](const std::pair<double, int>& a, const std::pair<double, int>& b) { return a.first < b.first; });
+  Cycle cycle = scorer.evaluate(starts.front().second, period);
+  for (std::size_t k = 1; k < starts.size() && !(cycle.closure_ratio <= options.max_closure_ratio); ++k) {
+    const Cycle next = scorer.evaluate(starts[k].second, period);
+    if (next.closure_ratio <= options.max_closure_ratio) cycle = next;
   }
-  const Cycle cycle = scorer.evaluate(start, period);
   if (!(cycle.closure_ratio <= options.max_closure_ratio)) {
     throw InputError(fmt::format(
         "take {}: cannot close a cycle: the best cycle (frames {:.2f} to {:.2f}, {:.2f} frames) "
@@ -376,7 +451,8 @@ TakeSegments find_cycles(const LocalTake& take, const CycleOptions& options) {
     if (n >= 2) whole_take_one_shot();
     return out;
   }
-  const CycleScorer scorer(take);
+  const PeriodicScorer periodic(take, options);
+  const CycleScorer& scorer = periodic.scorer;
   out.period = find_period(scorer, options);
   // Every start's best closing cycle, its length within 15 % of the period (a long take's pace
   // drifts).
@@ -446,7 +522,7 @@ RootTransform root_at_phase(const LocalTake& take, const TakeTiming& timing, dou
   return r;
 }
 
-LocalTake steady_cycle_root(LocalTake take, const TakeTiming& timing) {
+LocalTake steady_cycle_root(LocalTake take, const TakeTiming& timing, const CycleOptions& options) {
   const int n = take.num_frames();
   const double start = timing.start, period = timing.length;
   // Roots about the take's mean position c, so that a heading error of W does not turn into a
@@ -465,11 +541,20 @@ LocalTake steady_cycle_root(LocalTake take, const TakeTiming& timing) {
     const double a = std::clamp(x - i, 0.0, 1.0);
     return mix_roots(raw[i], raw[i + 1], a);
   };
+  // Over the frames that loop: a long take's stands and the steps into and out of them would
+  // slow the mean down. [x, x + period] loops if it closes as a cycle would (find_cycles).
+  const PeriodicScorer periodic(take, options);
+  auto loops = [&](int x) { return periodic.scorer.evaluate(x, period).closure_ratio <= options.max_closure_ratio; };
   RootTransform w;
   int count = 0;
-  for (int x = 0; x + period <= n - 1 + 1e-9; ++x, ++count) {
-    const RootTransform motion = root_compose(centred(raw_at(x + period)), root_inverse(centred(raw[x])));
-    w = {w.x + motion.x, w.y + motion.y, w.heading + motion.heading};
+  for (const bool all : {false, true}) {
+    for (int x = 0; x + period <= n - 1 + 1e-9; ++x) {
+      if (!all && !loops(x)) continue;
+      const RootTransform motion = root_compose(centred(raw_at(x + period)), root_inverse(centred(raw[x])));
+      w = {w.x + motion.x, w.y + motion.y, w.heading + motion.heading};
+      ++count;
+    }
+    if (count > 0) break;
   }
   if (count == 0) {
     throw InputError(fmt::format("take {}: its cycle ({:.2f} frames) is longer than the take",

@@ -54,6 +54,9 @@ struct CycleOptions {
 // period (a quadruped's limb pairs in antiphase) is not cut at the half; then refined to a
 // fraction of a frame. Throws InputError naming the take if it is shorter than
 // min_cycle_frames + 1 frames.
+// A loose part of the surface that moves a lot but repeats at no lag (a skirt's chaotic swing,
+// hair) is left out of the scores of find_period, find_cycle and find_cycles, as long as it is
+// less than half the vertices; a Cycle's closure and variation are then the rest's.
 double find_period(const LocalTake& take, const CycleOptions& options);
 
 // The best complete cycle of a cyclic take: find_period's period, started where the closure
@@ -89,11 +92,13 @@ RootTransform root_at_phase(const LocalTake& take, const TakeTiming& timing, dou
 // every step; a character that integrates them weaves too and covers more ground than it
 // advances. The steady root turns at a constant rate along a circular arc (or a straight
 // line): per cycle it moves by the take's mean motion W (root(x + period) root(x)^-1 averaged
-// over every frame x that has a frame one period later), and it runs through the middle of the
+// over every frame x that has a frame one period later and, where any is left, whose
+// [x, x + period] closes as a cycle (closure_ratio at most options.max_closure_ratio): not in
+// or across a long take's stands), and it runs through the middle of the
 // sway (over the cycle [start, start + period], its heading and position average to the
 // per-frame roots'). Returns the take re-rooted: these roots, and the shapes expressed
 // relative to them (the frames themselves unchanged), so the sway is kept in the body shape.
-LocalTake steady_cycle_root(LocalTake take, const TakeTiming& timing);
+LocalTake steady_cycle_root(LocalTake take, const TakeTiming& timing, const CycleOptions& options = {});
 
 Warp identity_warp(int intervals);
 

@@ -94,7 +94,7 @@ WarpedClass warp_class(const MotionClassConfig& motion, double fps, const Mesh& 
   // A one-shot take's root is its real motion (a jump travels), kept as estimated.
   if (motion.cyclic) {
     tbb::parallel_for(std::size_t{0}, takes.size(), [&](std::size_t k) {
-      takes[k] = steady_cycle_root(std::move(takes[k]), timing[k]);
+      takes[k] = steady_cycle_root(std::move(takes[k]), timing[k], options.cycle());
     });
   }
 

@@ -87,6 +87,31 @@ TEST(TransitionJump, ACrossFadeSizedToTheMotionsKeepsVerticesAtTheirSpeed) {
   EXPECT_GT(after.fade, 0.2);
 }
 
+// A jump is measured from the frame that crosses the switch to the last frame of the fade:
+// the source playing towards its exit is the captured motion (dance_skirt's dance swings an
+// arm at twice its 99th percentile there), no part of the transition.
+TEST(TransitionJump, TheWindowRunsFromTheSwitchToTheEndOfTheFade) {
+  CrossFadeWindow window;
+  TransitionRecord r;
+  CharacterState s;
+  r.request_time = 0.5;
+  EXPECT_FALSE(window.counts(r, s));  // the source plays
+  EXPECT_FALSE(window.counts(r, s));
+  r.switch_time = 0.9;
+  s.fading = true;
+  EXPECT_TRUE(window.counts(r, s));  // the switch
+  EXPECT_TRUE(window.counts(r, s));  // the fade
+  s.fading = false;
+  EXPECT_TRUE(window.counts(r, s));  // the frame the fade ends in
+  EXPECT_FALSE(window.counts(r, s));  // the target plays
+  // A switch without a fade: its frame alone.
+  r = TransitionRecord{};
+  r.request_time = 2.0;
+  r.switch_time = 2.0;
+  EXPECT_TRUE(window.counts(r, s));
+  EXPECT_FALSE(window.counts(r, s));
+}
+
 TEST(TransitionJump, TheMeterSeesTheLargestVertexStep) {
   const MotionGraph graph = test::make_test_graph();
   Character character(graph, TransitionOptions{});

@@ -135,6 +135,16 @@ void expect_continuous(const MotionClip& clip, double max_step) {
   }
 }
 
+// A gait on the floor: its feet do not slide while they stand (some sole point within 2 cm),
+// it has at least `min_stances` stances, no vertex is below the floor and no joint jumps.
+void expect_feet_planted(const MotionClip& clip, const std::vector<Mesh>& meshes, int min_stances) {
+  int runs = 0;
+  EXPECT_LT(worst_stance_drift(meshes, &runs), 0.02) << clip.spec.take;
+  EXPECT_GE(runs, min_stances) << clip.spec.take;
+  EXPECT_GE(lowest_vertex(meshes), -0.01f) << clip.spec.take;
+  expect_continuous(clip, 0.25);
+}
+
 TEST(Motion, WalkSpeedIsExactAndStrideAndCadenceGrowWithSpeed) {
   double previous_speed = 0, previous_stride = 0, previous_cycle = 1e9;
   for (double speed : {0.8, 1.3, 1.8}) {
@@ -179,12 +189,8 @@ TEST(Motion, AFastWalkAtSixFramesPerSecondKeepsAHumanStride) {
 TEST(Motion, WalkKeepsFeetPlantedAndAboveTheFloor) {
   const MotionClip clip = generate_motion(performer().skeleton, walk(1.3), kFps);
   const auto meshes = skin_all(clip);
-  int runs = 0;
-  EXPECT_LT(worst_stance_drift(meshes, &runs), 0.02);
-  EXPECT_GE(runs, 4);
-  EXPECT_GE(lowest_vertex(meshes), -0.01f);
+  expect_feet_planted(clip, meshes, 4);
   EXPECT_EQ(flight_frames(meshes), 0);  // walking: always a foot on the floor
-  expect_continuous(clip, 0.25);
 }
 
 TEST(Motion, RunHasFlightPhasesAndExactSpeed) {
@@ -257,12 +263,7 @@ TEST(Motion, TurnFollowsACircularArcAtTheTurnRate) {
       EXPECT_LT(std::abs(std::remainder(std::atan2(forward.y(), forward.x()) - r.heading, 2 * M_PI)), 12 * M_PI / 180);
       EXPECT_LT((clip.poses[static_cast<std::size_t>(f)].root_position.head<2>() - r.position).norm(), 0.06);
     }
-    const auto meshes = skin_all(clip);
-    int runs = 0;
-    EXPECT_LT(worst_stance_drift(meshes, &runs), 0.02);
-    EXPECT_GE(runs, 4);
-    EXPECT_GE(lowest_vertex(meshes), -0.01f);
-    expect_continuous(clip, 0.25);
+    expect_feet_planted(clip, skin_all(clip), 4);
   }
 }
 
@@ -296,6 +297,72 @@ TEST(Motion, DanceSpinsByTheTurnRateOnTheSpot) {
     }
     expect_continuous(clip, 0.35);
   }
+}
+
+// A turn that pauses: it slows to a stand over a gait cycle, stands still (the root does not
+// move, the feet side by side and planted, the arms hanging, the body swaying by millimetres)
+// and sets off again to the same speed and turn rate.
+TEST(Motion, AWalkThatPausesStandsStillAndSetsOffAgain) {
+  MotionSpec spec = turn(1.1, 60, 260);
+  spec.pauses = {PauseSpec{100, 25}};
+  const MotionClip clip = generate_motion(performer().skeleton, spec, kFps);
+  const int cycle = static_cast<int>(clip.cycle_frames);
+  ASSERT_EQ(clip.amplitude.size(), clip.poses.size());
+  ASSERT_GT(100 - 2 * cycle, 10);
+  ASSERT_LT(125 + 2 * cycle + 2, 250);
+  EXPECT_NEAR(parameter(clip, "speed"), 1.1, 1e-4);
+  EXPECT_NEAR(parameter(clip, "direction_deg_per_s"), 60, 1e-6);
+  const auto meshes = skin_all(clip);
+  for (int f = 1; f < spec.frames; ++f) {
+    const auto i = static_cast<std::size_t>(f);
+    const double step = (clip.root[i].position - clip.root[i - 1].position).norm();
+    const double turned = clip.root[i].heading - clip.root[i - 1].heading;
+    if (f > 100 && f < 125) {
+      // Standing still: no root motion at all, every vertex within the sway's millimetre.
+      EXPECT_EQ(clip.amplitude[i], 0.0) << f;
+      EXPECT_LT(step, 1e-9) << f;
+      EXPECT_LT(std::abs(turned), 1e-9) << f;
+      double worst = 0;
+      for (std::size_t v = 0; v < meshes[i].positions.size(); ++v) {
+        worst = std::max(worst, static_cast<double>((meshes[i].positions[v] - meshes[i - 1].positions[v]).norm()));
+      }
+      EXPECT_LT(worst, 0.0015) << f;
+    } else if (f < 100 - 2 * cycle || f > 125 + 2 * cycle + 2) {
+      // Walking at full pace before and after.
+      EXPECT_EQ(clip.amplitude[i], 1.0) << f;
+      EXPECT_NEAR(step, 1.1 / kFps, 1e-4) << f;
+      EXPECT_NEAR(turned, 60 * M_PI / 180 / kFps, 1e-9) << f;
+    } else {
+      EXPECT_LE(step, 1.1 / kFps + 1e-9) << f;  // slowing down or setting off
+    }
+  }
+  // Standing: the feet side by side (along the heading within 5 cm), the hands by the hips.
+  const double h = clip.root[112].heading;
+  const Eigen::Vector2d forward(std::cos(h), std::sin(h));
+  const Eigen::Vector3d apart = joint(clip, 112, "toe_l") - joint(clip, 112, "toe_r");
+  EXPECT_LT(std::abs(apart.head<2>().dot(forward)), 0.05);
+  EXPECT_GT(apart.head<2>().norm(), 0.08);
+  EXPECT_LT((joint(clip, 112, "hand_l") - joint(clip, 112, "hand_r")).norm(), 0.7);
+  expect_feet_planted(clip, meshes, 6);
+}
+
+TEST(Motion, RejectsPausesThatCannotBePerformed) {
+  const Skeleton& sk = performer().skeleton;
+  MotionSpec hop = jump(1.0, 0.3);
+  hop.pauses = {PauseSpec{40, 5}};
+  EXPECT_THROW(generate_motion(sk, hop, kFps), ConfigError);  // only a walk or a turn pauses
+  MotionSpec past_the_end = walk(1.0, 80);
+  past_the_end.pauses = {PauseSpec{70, 20}};
+  EXPECT_THROW(generate_motion(sk, past_the_end, kFps), ConfigError);
+  MotionSpec overlapping = walk(1.0, 200);
+  overlapping.pauses = {PauseSpec{50, 20}, PauseSpec{60, 10}};
+  EXPECT_THROW(generate_motion(sk, overlapping, kFps), ConfigError);
+  MotionSpec too_soon = walk(1.0, 200);  // no time to set off, walk and slow down between
+  too_soon.pauses = {PauseSpec{50, 20}, PauseSpec{120, 10}};
+  EXPECT_THROW(generate_motion(sk, too_soon, kFps), ConfigError);
+  MotionSpec apart = walk(1.0, 260);
+  apart.pauses = {PauseSpec{50, 20}, PauseSpec{190, 10}};
+  EXPECT_NO_THROW(generate_motion(sk, apart, kFps));
 }
 
 TEST(Motion, JumpHasExactLengthAndApexHeight) {
