@@ -21,8 +21,10 @@
 # Needs a build (scripts/build.sh, or FOURD_BIN naming the executables' folder), ffmpeg and
 # python3 with PyYAML.
 set -euo pipefail
-usage() { sed -n '2,22p' "$0" | sed 's/^# \{0,1\}//'; exit 2; }
-[[ $# -ge 2 && "$1" != -h && "$1" != --help ]] || usage
+usage() { sed -n '2,22p' "$0" | sed 's/^# \{0,1\}//'; exit "${1:-2}"; }
+[[ "${1:-}" == -h || "${1:-}" == --help ]] && usage 0
+[[ $# -ge 2 ]] || usage
+[[ -d "$1" ]] || { echo "error: no session folder '$1'" >&2; exit 2; }
 synth="$(cd "$1" && pwd)"
 out="$2"
 shift 2
