@@ -57,8 +57,9 @@ TEST(SurfaceQuery, MovedVerticesAnswerAsANewQueryOfTheMovedMesh) {
       EXPECT_LT((on - a.point).norm(), 1e-5f);
     }
   }
-  // Both kinds of answer were exercised.
-  EXPECT_GT(found, 2000);
+  // Both kinds of answer were exercised (of the 4,000 queries about half find a point, 1,987
+  // in the clang build: the count is not the point, so no tight bound).
+  EXPECT_GT(found, 1000);
   EXPECT_GT(filtered_out, 50);
   EXPECT_EQ(deformable.positions(), moved.positions);
 }
