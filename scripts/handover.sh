@@ -126,34 +126,23 @@ csv_args=()
   "${take_args[@]}" "${plate_args[@]}" "${csv_args[@]}"
 
 echo "== the imported session is the synthetic one"
-python3 - "$synth" "$session" <<'PY'
-import os, sys
-synth, session = sys.argv[1:3]
-def cameras(root):
-    # COLMAP text model: intrinsics per camera id, pose per image; P = K [R | t] per name.
-    intr = {}
-    for line in open(os.path.join(root, "calibration", "cameras.txt")):
-        if line.startswith("#") or not line.strip(): continue
-        p = line.split()
-        intr[p[0]] = [float(v) for v in p[4:]]
+# Both calibrations as fourd reads them (its own COLMAP reader, written as JSON in metres).
+mkdir -p "$out/check"
+for side in synth session; do
+  "$bin/fourd-import" "${!side}" --export-calibration json --export-units m \
+    --output "$out/check/$side.json" > /dev/null
+done
+python3 - "$out/check/synth.json" "$out/check/session.json" <<'PY'
+import json, sys
+def cameras(path):
+    # Per camera name: P = K [R | t], flattened, and the distortion.
     out = {}
-    lines = [l for l in open(os.path.join(root, "calibration", "images.txt"))
-             if not l.startswith("#")]
-    for line in lines[::2]:
-        p = line.split()
-        if len(p) < 10: continue
-        w, x, y, z = (float(v) for v in p[1:5])
-        R = [[1-2*(y*y+z*z), 2*(x*y-z*w), 2*(x*z+y*w)],
-             [2*(x*y+z*w), 1-2*(x*x+z*z), 2*(y*z-x*w)],
-             [2*(x*z-y*w), 2*(y*z+x*w), 1-2*(x*x+y*y)]]
-        t = [float(v) for v in p[5:8]]
-        k = intr[p[8]]
-        K = [[k[0], 0, k[2]], [0, k[1], k[3]], [0, 0, 1]]
-        Rt = [R[i] + [t[i]] for i in range(3)]
-        P = [[sum(K[i][m] * Rt[m][j] for m in range(3)) for j in range(4)] for i in range(3)]
-        out[os.path.splitext(p[9])[0]] = ([v for row in P for v in row], k[4:])
+    for c in json.load(open(path))["cameras"]:
+        Rt = [c["R"][i] + [c["t"][i]] for i in range(3)]
+        P = [sum(c["K"][i][m] * Rt[m][j] for m in range(3)) for i in range(3) for j in range(4)]
+        out[c["name"]] = (P, c["dist"])
     return out
-a, b = cameras(synth), cameras(session)
+a, b = (cameras(p) for p in sys.argv[1:3])
 assert sorted(a) == sorted(b), f"cameras {sorted(a)} vs {sorted(b)}"
 worst = 0.0
 for name in a:
