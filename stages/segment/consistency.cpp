@@ -48,6 +48,13 @@ std::vector<cv::Mat> distance_to_foreground(const std::vector<cv::Mat>& masks) {
   return distance;
 }
 
+// Per camera, the pixels of `a[c]` or `b[c]`.
+std::vector<cv::Mat> either(const std::vector<cv::Mat>& a, const std::vector<cv::Mat>& b) {
+  std::vector<cv::Mat> out(a.size());
+  for (std::size_t c = 0; c < a.size(); ++c) out[c] = a[c] | b[c];
+  return out;
+}
+
 }  // namespace
 
 ConsistencyCheck::ConsistencyCheck(const std::vector<Camera>& cameras) : cameras_(cameras) {
@@ -188,10 +195,8 @@ void ConsistencyCheck::recover(std::vector<cv::Mat>& silhouettes,
                                const std::vector<cv::Mat>& doubtful) const {
   const std::size_t n = cameras_.size();
   if (!usable_ || silhouettes.size() != n || doubtful.size() != n) return;
-  std::vector<cv::Mat> either(n);
-  for (std::size_t c = 0; c < n; ++c) either[c] = silhouettes[c] | doubtful[c];
   const std::vector<cv::Mat> sure = distance_to_foreground(silhouettes);
-  const std::vector<cv::Mat> possible = distance_to_foreground(either);
+  const std::vector<cv::Mat> possible = distance_to_foreground(either(silhouettes, doubtful));
   const int tolerance = static_cast<int>(n) >= kToleranceFrom ? 1 : 0;
   std::vector<std::uint8_t> kept(centres_.size(), 0);
   tbb::parallel_for(std::size_t{0}, centres_.size(), [&](std::size_t v) {
@@ -220,9 +225,7 @@ void ConsistencyCheck::recover_hidden(std::vector<cv::Mat>& silhouettes,
   if (!usable_ || silhouettes.size() != n || candidates.size() != n) return;
   // The pixels tried: those the coarse hull of silhouettes and candidates covers (of the
   // silhouettes alone, a part two cameras lost would not be tried).
-  std::vector<cv::Mat> either(n);
-  for (std::size_t c = 0; c < n; ++c) either[c] = silhouettes[c] | candidates[c];
-  const std::vector<std::uint8_t> kept = carve(distance_to_foreground(either));
+  const std::vector<std::uint8_t> kept = carve(distance_to_foreground(either(silhouettes, candidates)));
   // Per camera, every pixel's distance to the silhouette's outside: inside by the margin.
   std::vector<cv::Mat> depth_in(n);
   for (std::size_t c = 0; c < n; ++c) {
