@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <nlohmann/json.hpp>
@@ -199,6 +200,38 @@ TEST(SegmentPlate, MixedOutlinePixelsGoByTheirCoverage) {
   const int perimeter = static_cast<int>(2 * M_PI * radius);
   EXPECT_LT(cv::countNonZero(mask & ~truth), perimeter / 4) << "a ring of mixed pixels taken whole";
   EXPECT_LT(cv::countNonZero(truth & ~mask), perimeter / 4) << "the outline eaten into";
+}
+
+// The performer's shadow beside its shoe on a striped rug: the window that tells a shadow (the
+// rug's stripes show through) from the performer (they do not) holds the shoe too, which hides
+// the stripes. The shadow's pixels next to the shoe are background all the same.
+TEST(SegmentPlate, AShadowBesideTheShoeShowsTheRugThroughIt) {
+  std::mt19937 rng(13);
+  cv::Mat empty(kH, kW, CV_8UC3);
+  for (int y = 0; y < kH; ++y) {  // stripes of red and beige, 3 px each
+    empty.row(y).setTo((y / 3) % 2 ? cv::Scalar(60, 50, 170) : cv::Scalar(150, 180, 210));
+  }
+  PlateModel model = learn_plate(noisy_plates(empty, rng), "cam00");
+  model.shadow_region = cv::Mat(kH, kW, CV_8U, cv::Scalar(255));  // all of it floor
+  cv::Mat frame = empty.clone();
+  const cv::Rect shadow(40, 50, 80, 30), shoe(60, 40, 40, 20);  // the shoe's sole in the shadow
+  cv::Mat darker;
+  frame(shadow).convertTo(darker, CV_8UC3, 0.5);
+  darker.copyTo(frame(shadow));
+  frame(shoe).setTo(cv::Scalar(40, 200, 230));  // a yellow shoe, brighter than the shadow
+  add_noise(frame, rng, 2.0);
+  const cv::Mat mask = plate_silhouette(frame, model, SegmentOptions{});
+  const cv::Mat shoe_mask = cv::Mat::zeros(kH, kW, CV_8U);
+  shoe_mask(shoe).setTo(255);
+  EXPECT_GT(cv::countNonZero(mask(shoe)), shoe.area() * 95 / 100);
+  cv::Mat beside;  // the shadow within 3 px of the shoe
+  cv::dilate(shoe_mask, beside, cv::Mat(), {-1, -1}, 3);
+  beside &= ~shoe_mask;
+  cv::Mat in_shadow = cv::Mat::zeros(kH, kW, CV_8U);
+  in_shadow(shadow).setTo(255);
+  beside &= in_shadow;
+  EXPECT_LT(cv::countNonZero(mask & beside), cv::countNonZero(beside) / 10)
+      << "the shadow beside the shoe taken for the performer";
 }
 
 // Shadows are background only where the plate shows the floor near the rig's centre: a dark
