@@ -202,6 +202,50 @@ TEST(SegmentPlate, MixedOutlinePixelsGoByTheirCoverage) {
   EXPECT_LT(cv::countNonZero(truth & ~mask), perimeter / 4) << "the outline eaten into";
 }
 
+// The outline of a disc rendered as the synthetic studio renders it: an outline pixel is the mean
+// of 4 jittered samples, so its own coverage is a coarse, noisy guess at whether the disc covers
+// its centre (the silhouette's truth). trim_plate_outline judges the outline by the coverage
+// smoothed over the neighbours: from a mask a pixel too wide all round, it gets nearer the truth
+// than each pixel's own exact coverage at one half does.
+TEST(SegmentPlate, TheOutlineGoesByItsNeighboursCoverageToo) {
+  std::mt19937 rng(11);
+  cv::Mat empty(kH, kW, CV_8UC3, cv::Scalar(200, 205, 210));  // a light wall
+  const PlateModel model = learn_plate(noisy_plates(empty, rng), "cam00");
+  const cv::Point2d centre(kW / 2.0 + 0.3, kH / 2.0 - 0.2);
+  const double radius = 0.35 * kH;
+  const cv::Vec3f dark(140, 70, 40);  // denim blue
+  std::uniform_real_distribution<double> jitter(0.0, 1.0);
+  cv::Mat frame = empty.clone(), truth = cv::Mat::zeros(kH, kW, CV_8U);
+  cv::Mat own = cv::Mat::zeros(kH, kW, CV_8U);  // each pixel by its own coverage
+  for (int y = 0; y < kH; ++y) {
+    for (int x = 0; x < kW; ++x) {
+      auto inside = [&](double px, double py) { return std::hypot(px - centre.x, py - centre.y) < radius; };
+      const double jx = jitter(rng), jy = jitter(rng);
+      int covered = 0;
+      for (int i = 0; i < 4; ++i) {  // stratified in x and y, shifted per pixel
+        const double sx = std::fmod((i + 0.5) / 4 + jx, 1.0);
+        const double sy = std::fmod(std::array<double, 4>{0, 0.5, 0.25, 0.75}[i] + jy, 1.0);
+        covered += inside(x + sx, y + sy);
+      }
+      const float a = covered / 4.0f;
+      cv::Vec3b& px = frame.at<cv::Vec3b>(y, x);
+      for (int ch = 0; ch < 3; ++ch) px[ch] = cv::saturate_cast<std::uint8_t>(a * dark[ch] + (1 - a) * px[ch]);
+      truth.at<std::uint8_t>(y, x) = inside(x + 0.5, y + 0.5) ? 255 : 0;
+      own.at<std::uint8_t>(y, x) = a >= 0.5f ? 255 : 0;
+    }
+  }
+  add_noise(frame, rng, 2.0);
+  cv::Mat mask;
+  cv::dilate(truth, mask, cv::Mat());
+  trim_plate_outline(mask, frame, model);
+  const int wrong = cv::countNonZero(mask ^ truth), wrong_own = cv::countNonZero(own ^ truth);
+  const int perimeter = static_cast<int>(2 * M_PI * radius);
+  EXPECT_GT(wrong_own, perimeter / 10) << "4 samples a pixel should leave the outline noisy";
+  EXPECT_LT(wrong, wrong_own * 3 / 4) << "no better than each pixel's own coverage";
+  EXPECT_LT(cv::countNonZero(mask & ~truth), perimeter / 8) << "the ring of mixed pixels kept";
+  EXPECT_LT(cv::countNonZero(truth & ~mask), perimeter / 8) << "the outline eaten into";
+}
+
 // The performer's shadow beside its shoe on a striped rug: the window that tells a shadow (the
 // rug's stripes show through) from the performer (they do not) holds the shoe too, which hides
 // the stripes. The shadow's pixels next to the shoe are background all the same.
