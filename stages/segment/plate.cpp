@@ -174,7 +174,12 @@ void trim_outline(cv::Mat& mask, const cv::Mat& bgr, const cv::Mat& background, 
 // stays). The synthetic studio renders an outline pixel from 4 samples; its own alpha at 0.5
 // (trim_outline) left 44.5k px wrong within a pixel of the true outlines of the plate
 // studio's 160 validated silhouettes, smoothed 40.5k (docs/segment.md).
+// A pixel whose own alpha is within kClearAlpha of 0 or 1 is no mix and goes by its own: where
+// the image's edges are sharp (one sample a pixel) the smoothing only rounds corners and thins
+// limbs (import_plate_studio, 320x240: segment.iou_mean 0.9595 smoothing every outline pixel,
+// 0.9645 so; the plate studio recipe 0.9714 and 0.9709).
 constexpr double kOutlineBlur = 1.25;
+constexpr float kClearAlpha = 0.1f;
 void refine_outline(cv::Mat& mask, const cv::Mat& bgr, const cv::Mat& background, float min_contrast) {
   cv::Mat outside = mask == 0, near_outside, near_inside;
   const cv::Mat square = cv::getStructuringElement(cv::MORPH_RECT, {3, 3});
@@ -199,13 +204,17 @@ void refine_outline(cv::Mat& mask, const cv::Mat& bgr, const cv::Mat& background
       dec[x] = 255;
     }
   }
-  cv::GaussianBlur(coverage, coverage, cv::Size(0, 0), kOutlineBlur);
+  cv::Mat smoothed;
+  cv::GaussianBlur(coverage, smoothed, cv::Size(0, 0), kOutlineBlur);
   for (int r = 0; r < mask.rows; ++r) {
     const std::uint8_t* dec = decided.ptr<std::uint8_t>(r);
-    const float* a = coverage.ptr<float>(r);
+    const float* own = coverage.ptr<float>(r);
+    const float* a = smoothed.ptr<float>(r);
     std::uint8_t* m = mask.ptr<std::uint8_t>(r);
     for (int x = 0; x < mask.cols; ++x) {
-      if (dec[x]) m[x] = a[x] >= 0.5f ? 255 : 0;
+      if (!dec[x]) continue;
+      const bool mixed = own[x] > kClearAlpha && own[x] < 1 - kClearAlpha;
+      m[x] = (mixed ? a[x] : own[x]) >= 0.5f ? 255 : 0;
     }
   }
 }

@@ -246,6 +246,27 @@ TEST(SegmentPlate, TheOutlineGoesByItsNeighboursCoverageToo) {
   EXPECT_LT(cv::countNonZero(truth & ~mask), perimeter / 8) << "the outline eaten into";
 }
 
+// With one sample a pixel the edges are sharp: every outline pixel is all performer or all
+// plate, and smoothing their coverage would only round the corners off and thin the limbs. A
+// block and a limb 3 px wide keep every pixel, corners and fingertip included.
+TEST(SegmentPlate, SharpEdgesKeepTheirCorners) {
+  std::mt19937 rng(17);
+  cv::Mat empty(kH, kW, CV_8UC3, cv::Scalar(200, 205, 210));  // a light wall
+  const PlateModel model = learn_plate(noisy_plates(empty, rng), "cam00");
+  cv::Mat frame = empty.clone(), truth = cv::Mat::zeros(kH, kW, CV_8U);
+  const cv::Rect block(50, 30, 40, 50), limb(90, 50, 30, 3);
+  for (const cv::Rect& r : {block, limb}) {
+    frame(r).setTo(cv::Scalar(140, 70, 40));
+    truth(r).setTo(255);
+  }
+  add_noise(frame, rng, 2.0);
+  cv::Mat mask = truth.clone();
+  trim_plate_outline(mask, frame, model);
+  EXPECT_EQ(cv::countNonZero(mask ^ truth), 0);
+  EXPECT_EQ(mask.at<std::uint8_t>(block.y, block.x), 255) << "a corner rounded off";
+  EXPECT_EQ(mask.at<std::uint8_t>(limb.y + 1, limb.x + limb.width - 1), 255) << "the limb's tip";
+}
+
 // The performer's shadow beside its shoe on a striped rug: the window that tells a shadow (the
 // rug's stripes show through) from the performer (they do not) holds the shoe too, which hides
 // the stripes. The shadow's pixels next to the shoe are background all the same.
