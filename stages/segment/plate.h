@@ -53,9 +53,10 @@ cv::Mat plate_silhouette(const cv::Mat& bgr, const PlateModel& plate,
                          const SegmentOptions& options, cv::Mat* shadow_like = nullptr,
                          cv::Mat* off_plate = nullptr);
 
-// The outline of a silhouette judged again by its matte alpha against the plate, as
-// plate_silhouette does (in place): after pixels were added to it (recover_hidden), the mixed
-// pixels of a contrasting outline go by their coverage again.
+// The final outline of a silhouette (in place), after pixels were added to it
+// (recover_hidden): the pixels on either side of a contrasting outline go by their matte alpha
+// against the plate and the performer's colour just inside, smoothed over the neighbours (a
+// Gaussian of kOutlineBlur px), foreground at one half or more.
 void trim_plate_outline(cv::Mat& mask, const cv::Mat& bgr, const PlateModel& plate);
 
 }  // namespace fourd::segment

@@ -338,8 +338,9 @@ void SegmentRun::segment_item(std::size_t i, log::Progress& progress) {
     for (cv::Mat& mask : masks) clean_up(mask, options_);
   }
   // Plate: the performer where one camera cannot tell it from the plate (camouflage, a shoe as
-  // dark as a shadow), from the others' silhouettes, pixel by pixel; the outline judged again.
-  // Plate studio recipe: segment.iou_mean 0.961 -> 0.966 (worst 0.926 -> 0.943).
+  // dark as a shadow), from the others' silhouettes, pixel by pixel. Plate studio recipe:
+  // segment.iou_mean 0.961 -> 0.966 (worst 0.926 -> 0.943). Then the final outline, by its
+  // coverage smoothed over the neighbours: 0.9684 -> 0.9714 (worst 0.9467 -> 0.9493).
   if (!args_.finish && choice_.method == "plate") {
     consistency_->recover_hidden(masks, off_plate, shadow_floor_);
     for (std::size_t c = 0; c < nc; ++c) trim_plate_outline(masks[c], images[c], plates_[c]);

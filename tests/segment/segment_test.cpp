@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <nlohmann/json.hpp>
@@ -199,6 +200,103 @@ TEST(SegmentPlate, MixedOutlinePixelsGoByTheirCoverage) {
   const int perimeter = static_cast<int>(2 * M_PI * radius);
   EXPECT_LT(cv::countNonZero(mask & ~truth), perimeter / 4) << "a ring of mixed pixels taken whole";
   EXPECT_LT(cv::countNonZero(truth & ~mask), perimeter / 4) << "the outline eaten into";
+}
+
+// The outline of a disc rendered as the synthetic studio renders it: an outline pixel is the mean
+// of 4 jittered samples, so its own coverage is a coarse, noisy guess at whether the disc covers
+// its centre (the silhouette's truth). trim_plate_outline judges the outline by the coverage
+// smoothed over the neighbours: from a mask a pixel too wide all round, it gets nearer the truth
+// than each pixel's own exact coverage at one half does.
+TEST(SegmentPlate, TheOutlineGoesByItsNeighboursCoverageToo) {
+  std::mt19937 rng(11);
+  cv::Mat empty(kH, kW, CV_8UC3, cv::Scalar(200, 205, 210));  // a light wall
+  const PlateModel model = learn_plate(noisy_plates(empty, rng), "cam00");
+  const cv::Point2d centre(kW / 2.0 + 0.3, kH / 2.0 - 0.2);
+  const double radius = 0.35 * kH;
+  const cv::Vec3f dark(140, 70, 40);  // denim blue
+  std::uniform_real_distribution<double> jitter(0.0, 1.0);
+  cv::Mat frame = empty.clone(), truth = cv::Mat::zeros(kH, kW, CV_8U);
+  cv::Mat own = cv::Mat::zeros(kH, kW, CV_8U);  // each pixel by its own coverage
+  for (int y = 0; y < kH; ++y) {
+    for (int x = 0; x < kW; ++x) {
+      auto inside = [&](double px, double py) { return std::hypot(px - centre.x, py - centre.y) < radius; };
+      const double jx = jitter(rng), jy = jitter(rng);
+      int covered = 0;
+      for (int i = 0; i < 4; ++i) {  // stratified in x and y, shifted per pixel
+        const double sx = std::fmod((i + 0.5) / 4 + jx, 1.0);
+        const double sy = std::fmod(std::array<double, 4>{0, 0.5, 0.25, 0.75}[i] + jy, 1.0);
+        covered += inside(x + sx, y + sy);
+      }
+      const float a = covered / 4.0f;
+      cv::Vec3b& px = frame.at<cv::Vec3b>(y, x);
+      for (int ch = 0; ch < 3; ++ch) px[ch] = cv::saturate_cast<std::uint8_t>(a * dark[ch] + (1 - a) * px[ch]);
+      truth.at<std::uint8_t>(y, x) = inside(x + 0.5, y + 0.5) ? 255 : 0;
+      own.at<std::uint8_t>(y, x) = a >= 0.5f ? 255 : 0;
+    }
+  }
+  add_noise(frame, rng, 2.0);
+  cv::Mat mask;
+  cv::dilate(truth, mask, cv::Mat());
+  trim_plate_outline(mask, frame, model);
+  const int wrong = cv::countNonZero(mask ^ truth), wrong_own = cv::countNonZero(own ^ truth);
+  const int perimeter = static_cast<int>(2 * M_PI * radius);
+  EXPECT_GT(wrong_own, perimeter / 10) << "4 samples a pixel should leave the outline noisy";
+  EXPECT_LT(wrong, wrong_own * 3 / 4) << "no better than each pixel's own coverage";
+  EXPECT_LT(cv::countNonZero(mask & ~truth), perimeter / 8) << "the ring of mixed pixels kept";
+  EXPECT_LT(cv::countNonZero(truth & ~mask), perimeter / 8) << "the outline eaten into";
+}
+
+// With one sample a pixel the edges are sharp: every outline pixel is all performer or all
+// plate, and smoothing their coverage would only round the corners off and thin the limbs. A
+// block and a limb 3 px wide keep every pixel, corners and fingertip included.
+TEST(SegmentPlate, SharpEdgesKeepTheirCorners) {
+  std::mt19937 rng(17);
+  cv::Mat empty(kH, kW, CV_8UC3, cv::Scalar(200, 205, 210));  // a light wall
+  const PlateModel model = learn_plate(noisy_plates(empty, rng), "cam00");
+  cv::Mat frame = empty.clone(), truth = cv::Mat::zeros(kH, kW, CV_8U);
+  const cv::Rect block(50, 30, 40, 50), limb(90, 50, 30, 3);
+  for (const cv::Rect& r : {block, limb}) {
+    frame(r).setTo(cv::Scalar(140, 70, 40));
+    truth(r).setTo(255);
+  }
+  add_noise(frame, rng, 2.0);
+  cv::Mat mask = truth.clone();
+  trim_plate_outline(mask, frame, model);
+  EXPECT_EQ(cv::countNonZero(mask ^ truth), 0);
+  EXPECT_EQ(mask.at<std::uint8_t>(block.y, block.x), 255) << "a corner rounded off";
+  EXPECT_EQ(mask.at<std::uint8_t>(limb.y + 1, limb.x + limb.width - 1), 255) << "the limb's tip";
+}
+
+// The performer's shadow beside its shoe on a striped rug: the window that tells a shadow (the
+// rug's stripes show through) from the performer (they do not) holds the shoe too, which hides
+// the stripes. The shadow's pixels next to the shoe are background all the same.
+TEST(SegmentPlate, AShadowBesideTheShoeShowsTheRugThroughIt) {
+  std::mt19937 rng(13);
+  cv::Mat empty(kH, kW, CV_8UC3);
+  for (int y = 0; y < kH; ++y) {  // stripes of red and beige, 3 px each
+    empty.row(y).setTo((y / 3) % 2 ? cv::Scalar(60, 50, 170) : cv::Scalar(150, 180, 210));
+  }
+  PlateModel model = learn_plate(noisy_plates(empty, rng), "cam00");
+  model.shadow_region = cv::Mat(kH, kW, CV_8U, cv::Scalar(255));  // all of it floor
+  cv::Mat frame = empty.clone();
+  const cv::Rect shadow(40, 50, 80, 30), shoe(60, 40, 40, 20);  // the shoe's sole in the shadow
+  cv::Mat darker;
+  frame(shadow).convertTo(darker, CV_8UC3, 0.5);
+  darker.copyTo(frame(shadow));
+  frame(shoe).setTo(cv::Scalar(40, 200, 230));  // a yellow shoe, brighter than the shadow
+  add_noise(frame, rng, 2.0);
+  const cv::Mat mask = plate_silhouette(frame, model, SegmentOptions{});
+  const cv::Mat shoe_mask = cv::Mat::zeros(kH, kW, CV_8U);
+  shoe_mask(shoe).setTo(255);
+  EXPECT_GT(cv::countNonZero(mask(shoe)), shoe.area() * 95 / 100);
+  cv::Mat beside;  // the shadow within 3 px of the shoe
+  cv::dilate(shoe_mask, beside, cv::Mat(), {-1, -1}, 3);
+  beside &= ~shoe_mask;
+  cv::Mat in_shadow = cv::Mat::zeros(kH, kW, CV_8U);
+  in_shadow(shadow).setTo(255);
+  beside &= in_shadow;
+  EXPECT_LT(cv::countNonZero(mask & beside), cv::countNonZero(beside) / 10)
+      << "the shadow beside the shoe taken for the performer";
 }
 
 // Shadows are background only where the plate shows the floor near the rig's centre: a dark
