@@ -56,9 +56,9 @@ constexpr double kApart = 1.2;
 // thickness off the sheet either way, do not cross where the cloth folds onto itself. A pair
 // nearer than that is parted at kSelfSeparate, not at once (pushed apart in one step, it would
 // fly apart).
-constexpr double kSelfContact = 1.5;
+constexpr double kSelfContact = 2.0;
 constexpr int kSelfNeighbours = 1;
-constexpr double kSelfOver = 0.25;     // over a triangle: barycentric coordinates >= -kSelfOver
+constexpr double kSelfOver = 0.5;     // over a triangle: barycentric coordinates >= -kSelfOver
 constexpr double kSelfSeparate = 0.3;  // [m/s]
 // Along a ring the cloth turns by at most kRingTurn at a particle (its middle kept within
 // tan(kRingTurn / 2) / 2 of its neighbours' distance from their midpoint, kTurnStiffness of the

@@ -15,7 +15,7 @@
 // stays off the skinned surface where joints bend. The folds of gathered cloth are not
 // modelled (a gathered skirt is a smooth surface over them: along a ring the cloth turns by at
 // most 45 degrees at a particle). The cloth collides with itself: a particle stays on its side
-// of every triangle of the sheet that is not its neighbour, 1.5 shell thicknesses off it, so
+// of every triangle of the sheet that is not its neighbour, 2 shell thicknesses off it, so
 // the shell does not pass through itself where the cloth folds onto itself (but for a few
 // frames of a fast walk or spin, a small part of the skirt; tube_shell_positions thins the
 // shell where the sheet comes nearer to itself than that).
