@@ -32,7 +32,10 @@ std::vector<Tri> tube_shell_triangles(const TubeGrid& grid);
 
 // The shell's vertex positions for the sheet `sheet` (grid.size() points). The normal at a
 // point comes from its neighbours along the ring and along the column (one-sided at the first
-// and the last ring); where those coincide, it points away from the ring's centroid.
+// and the last ring); where those coincide, it points away from the ring's centroid. Where the
+// sheet bends more sharply than the shell is thick, or comes nearer to another part of itself
+// (folded onto itself), the shell thins there so that its sides do not pass through each other:
+// each side within half the sheet's radius of curvature and 0.45 of the gap, the sheet midway.
 std::vector<Vec3f> tube_shell_positions(const TubeGrid& grid, const std::vector<Eigen::Vector3d>& sheet,
                                         double thickness);
 

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 
 #include "pipeline/core/error.h"
@@ -48,6 +49,23 @@ constexpr double kRingBend = 0.5;
 // apart along a ring twice that: the shell, thicker than cloth, does not fold through itself
 // where the cloth gathers.
 constexpr double kApart = 1.2;
+// The cloth's contact with itself (real cloth does not pass through itself): a particle keeps
+// kSelfContact shell thicknesses from every triangle of the sheet it is over that is not its
+// neighbour (the triangle's nearest corner more than kSelfNeighbours particles from it along a
+// ring or down the cloth), on the side it was on, so that the shell's two sides, half a
+// thickness off the sheet either way, do not cross where the cloth folds onto itself. A pair
+// nearer than that is parted at kSelfSeparate, not at once (pushed apart in one step, it would
+// fly apart).
+constexpr double kSelfContact = 2.0;
+constexpr int kSelfNeighbours = 1;
+constexpr double kSelfOver = 0.5;     // over a triangle: barycentric coordinates >= -kSelfOver
+constexpr double kSelfSeparate = 0.3;  // [m/s]
+// Along a ring the cloth turns by at most kRingTurn at a particle (its middle kept within
+// tan(kRingTurn / 2) / 2 of its neighbours' distance from their midpoint, kTurnStiffness of the
+// way per pass): a gathered skirt is a smooth surface; sharper, the cloth would crease at single
+// particles and its cells fold through each other.
+constexpr double kRingTurn = 45 * M_PI / 180;
+constexpr double kTurnStiffness = 0.5;
 // Starting a take: the cloth as cut hangs on the rest pose, then the body moves into the first
 // frame's pose and holds it; a strong drag damps the fall.
 constexpr double kSettleRest = 1.2, kSettleBlend = 0.6, kSettleHold = 0.6;  // [s]
@@ -103,12 +121,32 @@ struct ClothSimulation::Impl {
   const Character& character;
   const Garment& garment;
   std::vector<Link> links;
+  // Three particles along a ring (kRingTurn).
+  std::vector<Eigen::Vector3i> bends;
   std::vector<Collider> colliders;
   std::vector<Isometry3d> rest_world;  // world_from_joint at rest
   std::vector<Vector3d> x, previous, velocity;
   std::vector<Eigen::Vector4i> carry_joints;  // per particle: the skin under it (follow_skin)
   std::vector<Eigen::Vector4f> carry_weights;
   std::vector<Vector3d> rest_centres;  // the colliders' bounding spheres' centres, rest pose
+
+  // The cloth's contact with itself: the sheet's triangles; the particle-triangle pairs near
+  // each other (found where the particles were at `found`, within `found_within`); per step,
+  // those in contact, the side of the triangle the particle is on, and the distance to keep.
+  struct Candidate {
+    int particle, face;
+  };
+  struct Contact {
+    int particle, face;
+    double side;      // +1: on the side the triangle's normal points to; -1: the other
+    double distance;  // to keep from the triangle's plane
+  };
+  std::vector<Eigen::Vector3i> faces;
+  std::vector<Candidate> candidates;
+  std::vector<Vector3d> found;
+  double found_within = 0;
+  std::vector<Contact> contacts;
+  std::vector<int> bucket_start, bucket_particles;  // a spatial hash of the particles
 
   // Per step: world_from_rest and rest_from_world per joint, colliders' centres in the world.
   std::vector<Isometry3d> skinning, unskinning;
@@ -134,6 +172,15 @@ struct ClothSimulation::Impl {
         }
         if (r + 2 < g.rings) link(i, g.index(r + 2, c), 1, 1, kBendStiffness);
         if (r > 0) link(i, g.index(r, (c + 2) % g.columns), kRingBend, 1, kBendStiffness, 2 * apart);
+        if (r > 0) bends.emplace_back(i, right, g.index(r, (c + 2) % g.columns));
+      }
+    }
+    for (int r = 0; r + 1 < g.rings; ++r) {
+      for (int c = 0; c < g.columns; ++c) {
+        const int a = g.index(r, c), b = g.index(r, (c + 1) % g.columns);
+        const int d = g.index(r + 1, c), e = g.index(r + 1, (c + 1) % g.columns);
+        faces.emplace_back(a, d, e);
+        faces.emplace_back(a, e, b);
       }
     }
     for (const detail::BodyPrimitive& prim : garment.body.primitives) {
@@ -268,6 +315,164 @@ struct ClothSimulation::Impl {
     x[at(b)] -= wb / (wa + wb) * correction;
   }
 
+  // How far particle i is from face f's nearest corner, in particles along a ring or down the
+  // cloth, whichever is more.
+  int apart_in_cloth(int i, const Eigen::Vector3i& f) const {
+    const TubeGrid& g = garment.grid;
+    const int r = i / g.columns, c = i % g.columns;
+    int apart = std::numeric_limits<int>::max();
+    for (int k = 0; k < 3; ++k) {
+      const int dr = std::abs(f[k] / g.columns - r), dc = std::abs(f[k] % g.columns - c);
+      apart = std::min(apart, std::max(dr, std::min(dc, g.columns - dc)));
+    }
+    return apart;
+  }
+
+  // The cells of a spatial hash.
+  static std::size_t bucket(const Eigen::Vector3i& cell, std::size_t buckets) {
+    const auto h = static_cast<std::uint64_t>(static_cast<std::int64_t>(cell.x()) * 92837111) ^
+                   static_cast<std::uint64_t>(static_cast<std::int64_t>(cell.y()) * 689287499) ^
+                   static_cast<std::uint64_t>(static_cast<std::int64_t>(cell.z()) * 283923481);
+    return static_cast<std::size_t>(h % buckets);
+  }
+
+  // Where p is over the triangle (a, b, c): its barycentric coordinates in `over` and its
+  // distance from the triangle's plane along the triangle's normal, returned; NaN when the
+  // triangle is degenerate.
+  static double over_triangle(const Vector3d& p, const Vector3d& a, const Vector3d& b, const Vector3d& c,
+                              Vector3d& normal, double over[3]) {
+    normal = (b - a).cross(c - a);
+    const double area2 = normal.norm();
+    if (area2 < 1e-14) return std::numeric_limits<double>::quiet_NaN();
+    normal /= area2;
+    const Vector3d q = p - a;
+    over[1] = q.cross(c - a).dot(normal) / area2;
+    over[2] = (b - a).cross(q).dot(normal) / area2;
+    over[0] = 1 - over[1] - over[2];
+    return q.dot(normal);
+  }
+
+  // The particle-triangle pairs within `within` of each other (a spatial hash of the
+  // particles), but the triangles' neighbours (kSelfNeighbours).
+  void find_candidates(double within) {
+    const double cell = within;
+    const std::size_t n = x.size(), buckets = 2 * n;
+    auto cell_of = [&](const Vector3d& p) { return Eigen::Vector3i((p / cell).array().floor().cast<int>()); };
+    bucket_start.assign(buckets + 1, 0);
+    for (std::size_t i = 0; i < n; ++i) ++bucket_start[bucket(cell_of(x[i]), buckets) + 1];
+    for (std::size_t b = 0; b < buckets; ++b) bucket_start[b + 1] += bucket_start[b];
+    bucket_particles.resize(n);
+    std::vector<int> fill(bucket_start.begin(), bucket_start.end() - 1);
+    for (std::size_t i = 0; i < n; ++i) bucket_particles[at(fill[bucket(cell_of(x[i]), buckets)]++)] = static_cast<int>(i);
+    candidates.clear();
+    for (std::size_t f = 0; f < faces.size(); ++f) {
+      const Eigen::Vector3i& t = faces[f];
+      Eigen::AlignedBox3d box;
+      for (int k = 0; k < 3; ++k) box.extend(x[at(t[k])]);
+      const Eigen::Vector3i lo = cell_of(box.min() - Vector3d::Constant(within));
+      const Eigen::Vector3i hi = cell_of(box.max() + Vector3d::Constant(within));
+      const std::size_t first = candidates.size();
+      for (int cx = lo.x(); cx <= hi.x(); ++cx) {
+        for (int cy = lo.y(); cy <= hi.y(); ++cy) {
+          for (int cz = lo.z(); cz <= hi.z(); ++cz) {
+            const std::size_t b = bucket({cx, cy, cz}, buckets);
+            for (int k = bucket_start[b]; k < bucket_start[b + 1]; ++k) {
+              const int i = bucket_particles[at(k)];
+              if (box.exteriorDistance(x[at(i)]) > within) continue;
+              if (apart_in_cloth(i, t) > kSelfNeighbours) candidates.push_back({i, static_cast<int>(f)});
+            }
+          }
+        }
+      }
+      // A particle in two cells of one bucket is found twice.
+      std::sort(candidates.begin() + static_cast<long>(first), candidates.end(),
+                [](const Candidate& l, const Candidate& r) { return l.particle < r.particle; });
+      candidates.erase(std::unique(candidates.begin() + static_cast<long>(first), candidates.end(),
+                                   [](const Candidate& l, const Candidate& r) { return l.particle == r.particle; }),
+                       candidates.end());
+    }
+    found = x;
+    found_within = within;
+  }
+
+  // The pairs in contact in this step: of the pairs that may come within `reach` of each other
+  // (found anew when the particles have moved too far since they were last), those whose
+  // particle was over the triangle at the step's start, on which side, and how far apart they
+  // are to be.
+  void find_contacts(double reach, double separate) {
+    // A pair farther apart than found_within has come no nearer than found_within - 2 moved,
+    // moved the farthest a particle has moved since, but for the cloth's common shift.
+    double moved = 0;
+    if (!found.empty()) {
+      Vector3d shift = Vector3d::Zero();
+      for (std::size_t i = 0; i < x.size(); ++i) shift += x[i] - found[i];
+      shift /= static_cast<double>(x.size());
+      for (std::size_t i = 0; i < x.size(); ++i) moved = std::max(moved, (x[i] - found[i] - shift).squaredNorm());
+    }
+    if (found.empty() || found_within - 2 * std::sqrt(moved) < reach) find_candidates(2 * reach);
+    contacts.clear();
+    for (const Candidate& candidate : candidates) {
+      const Eigen::Vector3i& t = faces[at(candidate.face)];
+      Vector3d normal;
+      double over[3] = {0, 0, 0};
+      const double distance = over_triangle(previous[at(candidate.particle)], previous[at(t[0])], previous[at(t[1])],
+                                            previous[at(t[2])], normal, over);
+      if (!(std::abs(distance) > 0) || std::abs(distance) > 2 * reach ||
+          std::min({over[0], over[1], over[2]}) < -kSelfOver) {
+        continue;
+      }
+      contacts.push_back({candidate.particle, candidate.face, distance > 0 ? 1.0 : -1.0,
+                          std::min(reach, std::abs(distance) + separate)});
+    }
+  }
+
+  // Moves each particle of `contacts` to its distance from its triangle's plane, on its side,
+  // where it is over the triangle (kSelfOver); the triangle's particles move the other way, by
+  // their part in the point of the triangle under it. The waistband's particles do not move.
+  void keep_apart() {
+    const int columns = garment.grid.columns;
+    auto weight = [&](int i) { return i < columns ? 0.0 : 1.0; };
+    for (const Contact& contact : contacts) {
+      const Eigen::Vector3i& t = faces[at(contact.face)];
+      Vector3d& p = x[at(contact.particle)];
+      Vector3d normal;
+      double over[3] = {0, 0, 0};
+      const double distance = contact.side * over_triangle(p, x[at(t[0])], x[at(t[1])], x[at(t[2])], normal, over);
+      if (!(distance < contact.distance) || std::min({over[0], over[1], over[2]}) < -kSelfOver) continue;
+      double denominator = weight(contact.particle);
+      for (double& o : over) {
+        o = std::clamp(o, 0.0, 1.0);
+      }
+      const double sum = over[0] + over[1] + over[2];
+      for (double& o : over) o /= sum;
+      for (int k = 0; k < 3; ++k) denominator += over[k] * over[k] * weight(t[k]);
+      if (denominator == 0) continue;
+      const Vector3d push = contact.side * (contact.distance - distance) / denominator * normal;
+      p += weight(contact.particle) * push;
+      for (int k = 0; k < 3; ++k) x[at(t[k])] -= over[k] * weight(t[k]) * push;
+    }
+  }
+
+  // Moves the middle particle of each of `bends` towards its outer ones' midpoint, and them
+  // away from it, where it is farther from it than `bend` of their distance.
+  void straighten() {
+    const double turn = std::tan(kRingTurn / 2) / 2;
+    const int columns = garment.grid.columns;
+    auto weight = [&](int i) { return i < columns ? 0.0 : 1.0; };
+    for (const Eigen::Vector3i& b : bends) {
+      const Vector3d off = x[at(b[1])] - 0.5 * (x[at(b[0])] + x[at(b[2])]);
+      const double length = off.norm(), limit = turn * (x[at(b[2])] - x[at(b[0])]).norm();
+      if (length <= limit) continue;
+      const double wa = weight(b[0]), wm = weight(b[1]), wb = weight(b[2]);
+      const double denominator = wm + 0.25 * (wa + wb);
+      if (denominator == 0) continue;
+      const Vector3d correction = kTurnStiffness * (length - limit) / length / denominator * off;
+      x[at(b[1])] -= wm * correction;
+      x[at(b[0])] += 0.5 * wa * correction;
+      x[at(b[2])] += 0.5 * wb * correction;
+    }
+  }
+
   // One step of `dt` with the joints at `world`.
   void step(const std::vector<Isometry3d>& world, double dt, double drag) {
     set_joints(world);
@@ -283,13 +488,18 @@ struct ClothSimulation::Impl {
       previous[at(c)] = x[at(c)];
       x[at(c)] = waist(c);
     }
+    const double reach = kSelfContact * garment.thickness;
+    find_contacts(reach, kSelfSeparate * dt);
     for (int pass = 0; pass < kPasses; ++pass) {
       for (const Link& l : links) pull(l.a, l.b, l.min, l.max, l.stiffness);
+      straighten();
+      keep_apart();
     }
     const double margin = 0.5 * garment.thickness + garment.clearance;
     std::vector<int> near;
     near.reserve(colliders.size());
     for (int i = g.columns; i < g.size(); ++i) collide(i, margin, near);
+    keep_apart();  // as the body pushed the cloth, the cloth pushes back
     for (int i = g.columns; i < g.size(); ++i) velocity[at(i)] = (x[at(i)] - previous[at(i)]) / dt;
   }
 
@@ -312,6 +522,7 @@ struct ClothSimulation::Impl {
     std::vector<Isometry3d> rest(rest_world.size());
     for (std::size_t j = 0; j < rest.size(); ++j) rest[j] = place * rest_world[j];
     x.resize(garment.cut.size());
+    found.clear();
     for (std::size_t i = 0; i < x.size(); ++i) x[i] = place * garment.cut[i];
     previous = x;
     velocity.assign(x.size(), Vector3d::Zero());

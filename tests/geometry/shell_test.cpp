@@ -7,6 +7,7 @@
 
 #include "pipeline/core/error.h"
 #include "pipeline/geometry/measures.h"
+#include "pipeline/geometry/repair.h"
 
 namespace fourd {
 namespace {
@@ -59,6 +60,45 @@ TEST(TubeShell, DegenerateNeighboursFallBackToTheRingsCentroid) {
   EXPECT_TRUE(outer.allFinite() && inner.allFinite());
   EXPECT_GT(outer.x(), inner.x());  // column 0 is at +x: out is +x
   EXPECT_NEAR((outer - inner).norm(), 0.02, 1e-6);
+}
+
+// A tube flattened until its two halves are nearer than the shell is thick (cloth folded onto
+// itself): offset by half the thickness either way, the sides would pass through each other.
+// The shell thins there to stay within the gap, and keeps its thickness where the sheet is
+// clear of itself.
+TEST(TubeShell, ThinsWhereTheSheetFoldsOntoItself) {
+  const TubeGrid grid{6, 96};
+  const double t = 0.01, a = 0.1, b = 0.003;  // the halves 6 mm apart
+  std::vector<Eigen::Vector3d> sheet;
+  for (int ring = 0; ring < grid.rings; ++ring) {
+    for (int c = 0; c < grid.columns; ++c) {
+      const double angle = 2 * std::numbers::pi * c / grid.columns;
+      sheet.emplace_back(a * std::cos(angle), b * std::sin(angle), -0.2 * ring / (grid.rings - 1));
+    }
+  }
+  Mesh shell;
+  shell.triangles = tube_shell_triangles(grid);
+  shell.positions = tube_shell_positions(grid, sheet, t);
+  EXPECT_FALSE(has_self_intersections(shell));
+  EXPECT_GT(enclosed_volume(shell), 0.0);
+  const int n = grid.size();
+  for (int i = 0; i < n; ++i) {
+    const float thickness = (shell.positions[static_cast<std::size_t>(i)] - shell.positions[static_cast<std::size_t>(n + i)]).norm();
+    EXPECT_LT(thickness, 2 * b) << i;  // within the gap between the halves
+    EXPECT_GT(thickness, 0.0f) << i;
+  }
+  // Clear of itself (a round tube of the same grid), the shell is as thick as asked.
+  sheet.clear();
+  for (int ring = 0; ring < grid.rings; ++ring) {
+    for (int c = 0; c < grid.columns; ++c) {
+      const double angle = 2 * std::numbers::pi * c / grid.columns;
+      sheet.emplace_back(a * std::cos(angle), a * std::sin(angle), -0.2 * ring / (grid.rings - 1));
+    }
+  }
+  const std::vector<Vec3f> round = tube_shell_positions(grid, sheet, t);
+  for (int i = 0; i < n; ++i) {
+    EXPECT_NEAR((round[static_cast<std::size_t>(i)] - round[static_cast<std::size_t>(n + i)]).norm(), t, 1e-6);
+  }
 }
 
 TEST(TubeShell, RejectsTooSmallGrids) {

@@ -185,28 +185,39 @@ TEST(Garment, SkirtIsAClosedShellOfOneTopologyInEveryFrame) {
   EXPECT_NEAR(g.thickness, 0.010 * c.height / 1.75, 1e-12);
 }
 
-// The shell does not pass through itself where the cloth hangs or swings freely: at rest and
-// through the dance's first steps. The cloth does not collide with itself, so where it folds
-// onto itself (in a spin, around a stepping leg) the shell can: in about half the frames of the
-// fast dance, in a small part of the skirt.
-TEST(Garment, ShellDoesNotSelfIntersectWhereTheClothHangs) {
+// The shell does not pass through itself: at rest, through the dance's first steps, and in
+// the spin but for a few frames (without the cloth's contact with itself, the ring's limit on
+// turning and the shell thinning where the cloth folds onto itself: 21 of the 40 frames, the
+// sheet itself in 19). Crossing frames are counted on the shell (what validation re-meshes)
+// and on the sheet (the simulation's particles as a surface: the middle of the two sides).
+TEST(Garment, ShellHardlySelfIntersectsInASpin) {
   const Character& c = skirted();
-  EXPECT_FALSE(has_self_intersections(c.garment->rest));
+  const Garment& g = *c.garment;
+  EXPECT_FALSE(has_self_intersections(g.rest));
   const auto& meshes = dance_take().meshes;
-  int crossing = 0;
+  Mesh sheet_mesh;
+  for (const Tri& t : g.rest.triangles) {
+    if (t.maxCoeff() < g.grid.size()) sheet_mesh.triangles.push_back(t);  // the outer side's
+  }
+  int shell_crossing = 0, sheet_crossing = 0;
   for (std::size_t f = 0; f < meshes.size(); ++f) {
     Mesh shell;
     shell.positions.assign(meshes[f].positions.begin() + static_cast<long>(c.skin.rest.num_vertices()),
                            meshes[f].positions.end());
-    shell.triangles = c.garment->rest.triangles;
+    shell.triangles = g.rest.triangles;
     const bool crosses = has_self_intersections(shell);
     if (f < 8) {
       EXPECT_FALSE(crosses) << "frame " << f;
     }
-    crossing += crosses;
+    shell_crossing += crosses;
+    sheet_mesh.positions.clear();
+    for (const Eigen::Vector3d& p : sheet(c, meshes[f])) sheet_mesh.positions.push_back(p.cast<float>());
+    sheet_crossing += has_self_intersections(sheet_mesh);
   }
-  printf("the shell passes through itself in %d of %zu frames\n", crossing, meshes.size());
-  EXPECT_LE(crossing, static_cast<int>(meshes.size()) * 3 / 5);
+  printf("the shell passes through itself in %d of %zu frames, the sheet in %d\n", shell_crossing, meshes.size(),
+         sheet_crossing);
+  EXPECT_LE(shell_crossing, static_cast<int>(meshes.size()) / 4);
+  EXPECT_LE(sheet_crossing, static_cast<int>(meshes.size()) / 10);
 }
 
 // Down the cloth the distances keep their cut length (inextensible), across it they never
