@@ -314,6 +314,12 @@ cv::Vec3d background_gain(const cv::Mat& bgr, const PlateModel& plate) {
 
 namespace {
 
+// The brightness ratio of `col` to the plate's colour B (a shadow: below 1; 1 where B is black).
+float brightness_ratio(const cv::Vec3f& col, const cv::Vec3f& B) {
+  const float bb = B.dot(B);
+  return bb > 1.0f ? col.dot(B) / bb : 1.0f;
+}
+
 // How far `col` is off the chromaticity of the plate's colour B (alpha: its brightness ratio
 // to B), less the slack a shadow's differently coloured light takes.
 float off_plate_chroma(const cv::Vec3f& col, const cv::Vec3f& B, float alpha) {
@@ -354,10 +360,9 @@ cv::Mat plate_silhouette(const cv::Mat& bgr, const PlateModel& plate,
     for (int c = 0; c < bgr.cols; ++c) {
       const cv::Vec3f col(in[c][0], in[c][1], in[c][2]);
       const cv::Vec3f B = m[c].mul(gain);
-      const float bb = B.dot(B);
-      const float alpha = bb > 1.0f ? col.dot(B) / bb : 1.0f;
+      const float alpha = brightness_ratio(col, B);
       w[c] = off_plate_chroma(col, B, alpha) < kSureForeground * sigma &&
-                     (1.0f - alpha) * std::sqrt(bb) > kSureBackground * sigma
+                     (1.0f - alpha) * std::sqrt(B.dot(B)) > kSureBackground * sigma
                  ? 1.0f : 0.0f;
     }
   }
@@ -375,9 +380,8 @@ cv::Mat plate_silhouette(const cv::Mat& bgr, const PlateModel& plate,
       const cv::Vec3f B = m[c].mul(gain);
       bg[c] = B;
       // Brightness ratio to the plate (a shadow: below 1) and the colour off its chromaticity.
-      const float bb = B.dot(B);
-      const float alpha = bb > 1.0f ? col.dot(B) / bb : 1.0f;
-      const float norm_b = std::sqrt(bb);
+      const float alpha = brightness_ratio(col, B);
+      const float norm_b = std::sqrt(B.dot(B));
       const float darkest = (!may_shade || may_shade[c]) && !hidden[c]
                                 ? static_cast<float>(kShadowDarkest) : 1.0f;
       const float shade = std::clamp(alpha, darkest, 1.0f);
@@ -409,7 +413,7 @@ cv::Mat plate_silhouette(const cv::Mat& bgr, const PlateModel& plate,
   return mask;
 }
 
-void trim_plate_outline(cv::Mat& mask, const cv::Mat& bgr, const PlateModel& plate) {
+void refine_plate_outline(cv::Mat& mask, const cv::Mat& bgr, const PlateModel& plate) {
   const cv::Vec3d g = background_gain(bgr, plate);
   cv::Mat background;
   cv::multiply(plate.mean, cv::Scalar(g[0], g[1], g[2]), background);

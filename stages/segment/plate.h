@@ -57,6 +57,6 @@ cv::Mat plate_silhouette(const cv::Mat& bgr, const PlateModel& plate,
 // (recover_hidden): the pixels on either side of a contrasting outline go by their matte alpha
 // against the plate and the performer's colour just inside, smoothed over the neighbours (a
 // Gaussian of kOutlineBlur px), foreground at one half or more.
-void trim_plate_outline(cv::Mat& mask, const cv::Mat& bgr, const PlateModel& plate);
+void refine_plate_outline(cv::Mat& mask, const cv::Mat& bgr, const PlateModel& plate);
 
 }  // namespace fourd::segment

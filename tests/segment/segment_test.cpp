@@ -170,6 +170,32 @@ TEST(SegmentPlate, ToleratesAGainChangeAndAShadow) {
   EXPECT_LT(cv::countNonZero(mask(shadow)), shadow.area() / 100) << "the shadow is foreground";
 }
 
+// A disc of `colour` over `empty`, each pixel the mix of the two by the fraction of the samples
+// `samples(x, y)` gives (offsets within the pixel, row by row) that fall in the disc. `truth`:
+// the pixels whose centre it covers; `own`: those whose samples it covers at least half of.
+struct Disc {
+  cv::Mat frame, truth, own;
+};
+template <class Samples>
+Disc render_disc(const cv::Mat& empty, cv::Point2d centre, double radius, const cv::Vec3f& colour,
+                 Samples samples) {
+  Disc d{empty.clone(), cv::Mat::zeros(empty.size(), CV_8U), cv::Mat::zeros(empty.size(), CV_8U)};
+  auto inside = [&](double px, double py) { return std::hypot(px - centre.x, py - centre.y) < radius; };
+  for (int y = 0; y < empty.rows; ++y) {
+    for (int x = 0; x < empty.cols; ++x) {
+      const std::vector<cv::Point2d> offsets = samples(x, y);
+      int covered = 0;
+      for (const cv::Point2d& o : offsets) covered += inside(x + o.x, y + o.y);
+      const float a = static_cast<float>(covered) / static_cast<float>(offsets.size());
+      cv::Vec3b& px = d.frame.at<cv::Vec3b>(y, x);
+      for (int ch = 0; ch < 3; ++ch) px[ch] = cv::saturate_cast<std::uint8_t>(a * colour[ch] + (1 - a) * px[ch]);
+      d.truth.at<std::uint8_t>(y, x) = inside(x + 0.5, y + 0.5) ? 255 : 0;
+      d.own.at<std::uint8_t>(y, x) = a >= 0.5f ? 255 : 0;
+    }
+  }
+  return d;
+}
+
 // The outline of a performer against a contrasting plate: its pixels are partly both, and already
 // at a small coverage far more than the noise off the plate. A disc rendered 4x4 supersampled
 // (the pixel's colour is its coverage's mix): the silhouette is the pixels whose centre it
@@ -181,20 +207,15 @@ TEST(SegmentPlate, MixedOutlinePixelsGoByTheirCoverage) {
   const cv::Point2d centre(kW / 2.0 + 0.3, kH / 2.0 - 0.2);
   const double radius = 0.35 * kH;
   const cv::Vec3f dark(140, 70, 40);  // denim blue (grey would pass for shadow)
-  cv::Mat frame = empty.clone(), truth = cv::Mat::zeros(kH, kW, CV_8U);
-  for (int y = 0; y < kH; ++y) {
-    for (int x = 0; x < kW; ++x) {
-      auto inside = [&](double px, double py) { return std::hypot(px - centre.x, py - centre.y) < radius; };
-      int covered = 0;
-      for (int sy = 0; sy < 4; ++sy) {
-        for (int sx = 0; sx < 4; ++sx) covered += inside(x + (sx + 0.5) / 4, y + (sy + 0.5) / 4);
-      }
-      const float a = covered / 16.0f;
-      cv::Vec3b& px = frame.at<cv::Vec3b>(y, x);
-      for (int ch = 0; ch < 3; ++ch) px[ch] = cv::saturate_cast<std::uint8_t>(a * dark[ch] + (1 - a) * px[ch]);
-      truth.at<std::uint8_t>(y, x) = inside(x + 0.5, y + 0.5) ? 255 : 0;
+  const Disc disc = render_disc(empty, centre, radius, dark, [](int, int) {
+    std::vector<cv::Point2d> samples;
+    for (int sy = 0; sy < 4; ++sy) {
+      for (int sx = 0; sx < 4; ++sx) samples.emplace_back((sx + 0.5) / 4, (sy + 0.5) / 4);
     }
-  }
+    return samples;
+  });
+  cv::Mat frame = disc.frame;
+  const cv::Mat& truth = disc.truth;
   add_noise(frame, rng, 2.0);
   const cv::Mat mask = plate_silhouette(frame, model, SegmentOptions{});
   const int perimeter = static_cast<int>(2 * M_PI * radius);
@@ -204,7 +225,7 @@ TEST(SegmentPlate, MixedOutlinePixelsGoByTheirCoverage) {
 
 // The outline of a disc rendered as the synthetic studio renders it: an outline pixel is the mean
 // of 4 jittered samples, so its own coverage is a coarse, noisy guess at whether the disc covers
-// its centre (the silhouette's truth). trim_plate_outline judges the outline by the coverage
+// its centre (the silhouette's truth). refine_plate_outline judges the outline by the coverage
 // smoothed over the neighbours: from a mask a pixel too wide all round, it gets nearer the truth
 // than each pixel's own exact coverage at one half does.
 TEST(SegmentPlate, TheOutlineGoesByItsNeighboursCoverageToo) {
@@ -215,29 +236,21 @@ TEST(SegmentPlate, TheOutlineGoesByItsNeighboursCoverageToo) {
   const double radius = 0.35 * kH;
   const cv::Vec3f dark(140, 70, 40);  // denim blue
   std::uniform_real_distribution<double> jitter(0.0, 1.0);
-  cv::Mat frame = empty.clone(), truth = cv::Mat::zeros(kH, kW, CV_8U);
-  cv::Mat own = cv::Mat::zeros(kH, kW, CV_8U);  // each pixel by its own coverage
-  for (int y = 0; y < kH; ++y) {
-    for (int x = 0; x < kW; ++x) {
-      auto inside = [&](double px, double py) { return std::hypot(px - centre.x, py - centre.y) < radius; };
-      const double jx = jitter(rng), jy = jitter(rng);
-      int covered = 0;
-      for (int i = 0; i < 4; ++i) {  // stratified in x and y, shifted per pixel
-        const double sx = std::fmod((i + 0.5) / 4 + jx, 1.0);
-        const double sy = std::fmod(std::array<double, 4>{0, 0.5, 0.25, 0.75}[i] + jy, 1.0);
-        covered += inside(x + sx, y + sy);
-      }
-      const float a = covered / 4.0f;
-      cv::Vec3b& px = frame.at<cv::Vec3b>(y, x);
-      for (int ch = 0; ch < 3; ++ch) px[ch] = cv::saturate_cast<std::uint8_t>(a * dark[ch] + (1 - a) * px[ch]);
-      truth.at<std::uint8_t>(y, x) = inside(x + 0.5, y + 0.5) ? 255 : 0;
-      own.at<std::uint8_t>(y, x) = a >= 0.5f ? 255 : 0;
+  const Disc disc = render_disc(empty, centre, radius, dark, [&](int, int) {
+    const double jx = jitter(rng), jy = jitter(rng);
+    std::vector<cv::Point2d> samples;
+    for (int i = 0; i < 4; ++i) {  // stratified in x and y, shifted per pixel
+      samples.emplace_back(std::fmod((i + 0.5) / 4 + jx, 1.0),
+                           std::fmod(std::array<double, 4>{0, 0.5, 0.25, 0.75}[i] + jy, 1.0));
     }
-  }
+    return samples;
+  });
+  cv::Mat frame = disc.frame;
+  const cv::Mat &truth = disc.truth, &own = disc.own;  // own: each pixel by its own coverage
   add_noise(frame, rng, 2.0);
   cv::Mat mask;
   cv::dilate(truth, mask, cv::Mat());
-  trim_plate_outline(mask, frame, model);
+  refine_plate_outline(mask, frame, model);
   const int wrong = cv::countNonZero(mask ^ truth), wrong_own = cv::countNonZero(own ^ truth);
   const int perimeter = static_cast<int>(2 * M_PI * radius);
   EXPECT_GT(wrong_own, perimeter / 10) << "4 samples a pixel should leave the outline noisy";
@@ -261,7 +274,7 @@ TEST(SegmentPlate, SharpEdgesKeepTheirCorners) {
   }
   add_noise(frame, rng, 2.0);
   cv::Mat mask = truth.clone();
-  trim_plate_outline(mask, frame, model);
+  refine_plate_outline(mask, frame, model);
   EXPECT_EQ(cv::countNonZero(mask ^ truth), 0);
   EXPECT_EQ(mask.at<std::uint8_t>(block.y, block.x), 255) << "a corner rounded off";
   EXPECT_EQ(mask.at<std::uint8_t>(limb.y + 1, limb.x + limb.width - 1), 255) << "the limb's tip";
