@@ -299,11 +299,14 @@ struct ClothSimulation::Impl {
     }
   }
 
+  // How much particle i moves when a constraint corrects it: 0 for the waistband's (ring 0,
+  // sewn to the body), 1 for every other.
+  double mobility(int i) const { return i < garment.grid.columns ? 0.0 : 1.0; }
+
   // Moves particles a and b (the waistband's do not move) to a distance within [min, max], by
   // `stiffness` of the way.
   void pull(int a, int b, double min, double max, double stiffness) {
-    const int columns = garment.grid.columns;
-    const double wa = a < columns ? 0.0 : 1.0, wb = b < columns ? 0.0 : 1.0;
+    const double wa = mobility(a), wb = mobility(b);
     if (wa + wb == 0) return;
     const Vector3d d = x[at(b)] - x[at(a)];
     const double length = d.norm();
@@ -430,8 +433,6 @@ struct ClothSimulation::Impl {
   // where it is over the triangle (kSelfOver); the triangle's particles move the other way, by
   // their part in the point of the triangle under it. The waistband's particles do not move.
   void keep_apart() {
-    const int columns = garment.grid.columns;
-    auto weight = [&](int i) { return i < columns ? 0.0 : 1.0; };
     for (const Contact& contact : contacts) {
       const Eigen::Vector3i& t = faces[at(contact.face)];
       Vector3d& p = x[at(contact.particle)];
@@ -439,17 +440,17 @@ struct ClothSimulation::Impl {
       double over[3] = {0, 0, 0};
       const double distance = contact.side * over_triangle(p, x[at(t[0])], x[at(t[1])], x[at(t[2])], normal, over);
       if (!(distance < contact.distance) || std::min({over[0], over[1], over[2]}) < -kSelfOver) continue;
-      double denominator = weight(contact.particle);
+      double denominator = mobility(contact.particle);
       for (double& o : over) {
         o = std::clamp(o, 0.0, 1.0);
       }
       const double sum = over[0] + over[1] + over[2];
       for (double& o : over) o /= sum;
-      for (int k = 0; k < 3; ++k) denominator += over[k] * over[k] * weight(t[k]);
+      for (int k = 0; k < 3; ++k) denominator += over[k] * over[k] * mobility(t[k]);
       if (denominator == 0) continue;
       const Vector3d push = contact.side * (contact.distance - distance) / denominator * normal;
-      p += weight(contact.particle) * push;
-      for (int k = 0; k < 3; ++k) x[at(t[k])] -= over[k] * weight(t[k]) * push;
+      p += mobility(contact.particle) * push;
+      for (int k = 0; k < 3; ++k) x[at(t[k])] -= over[k] * mobility(t[k]) * push;
     }
   }
 
@@ -457,13 +458,11 @@ struct ClothSimulation::Impl {
   // away from it, where it is farther from it than `bend` of their distance.
   void straighten() {
     const double turn = std::tan(kRingTurn / 2) / 2;
-    const int columns = garment.grid.columns;
-    auto weight = [&](int i) { return i < columns ? 0.0 : 1.0; };
     for (const Eigen::Vector3i& b : bends) {
       const Vector3d off = x[at(b[1])] - 0.5 * (x[at(b[0])] + x[at(b[2])]);
       const double length = off.norm(), limit = turn * (x[at(b[2])] - x[at(b[0])]).norm();
       if (length <= limit) continue;
-      const double wa = weight(b[0]), wm = weight(b[1]), wb = weight(b[2]);
+      const double wa = mobility(b[0]), wm = mobility(b[1]), wb = mobility(b[2]);
       const double denominator = wm + 0.25 * (wa + wb);
       if (denominator == 0) continue;
       const Vector3d correction = kTurnStiffness * (length - limit) / length / denominator * off;
