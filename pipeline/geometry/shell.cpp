@@ -10,6 +10,25 @@
 #include "pipeline/core/error.h"
 
 namespace fourd {
+
+int TubeGrid::steps(int i, int j) const {
+  const int dr = std::abs(i / columns - j / columns), dc = std::abs(i % columns - j % columns);
+  return std::max(dr, std::min(dc, columns - dc));
+}
+
+std::vector<Tri> TubeGrid::sheet_triangles() const {
+  std::vector<Tri> out;
+  for (int r = 0; r + 1 < rings; ++r) {
+    for (int c = 0; c < columns; ++c) {
+      const int a = index(r, c), b = index(r, (c + 1) % columns);
+      const int d = index(r + 1, c), e = index(r + 1, (c + 1) % columns);
+      out.emplace_back(a, d, e);
+      out.emplace_back(a, e, b);
+    }
+  }
+  return out;
+}
+
 namespace {
 
 // Where the sheet bends sharply, each side keeps at most this share of the sheet's radius of
@@ -59,39 +78,29 @@ std::vector<double> gap_to_other_parts(const TubeGrid& grid, const std::vector<E
   std::vector<std::pair<std::int64_t, int>> cells(static_cast<std::size_t>(n));
   for (int i = 0; i < n; ++i) cells[static_cast<std::size_t>(i)] = {key(cell_of(sheet[static_cast<std::size_t>(i)])), i};
   std::sort(cells.begin(), cells.end());
-  auto apart = [&](int i, int j) {
-    const int dr = std::abs(i / grid.columns - j / grid.columns), dc = std::abs(i % grid.columns - j % grid.columns);
-    return std::max(dr, std::min(dc, grid.columns - dc));
-  };
-  for (int r = 0; r + 1 < grid.rings; ++r) {
-    for (int c = 0; c < grid.columns; ++c) {
-      const int a = grid.index(r, c), b = grid.index(r, (c + 1) % grid.columns);
-      const int d = grid.index(r + 1, c), e = grid.index(r + 1, (c + 1) % grid.columns);
-      for (const Eigen::Vector3i& t : {Eigen::Vector3i(a, d, e), Eigen::Vector3i(a, e, b)}) {
-        const Eigen::Vector3d &p0 = sheet[static_cast<std::size_t>(t[0])], &p1 = sheet[static_cast<std::size_t>(t[1])],
-                              &p2 = sheet[static_cast<std::size_t>(t[2])];
-        Eigen::Vector3d normal = (p1 - p0).cross(p2 - p0);
-        if (normal.norm() > 1e-12) normal.normalize();
-        const Eigen::Vector3i lo = cell_of(p0.cwiseMin(p1).cwiseMin(p2) - Eigen::Vector3d::Constant(within));
-        const Eigen::Vector3i hi = cell_of(p0.cwiseMax(p1).cwiseMax(p2) + Eigen::Vector3d::Constant(within));
-        for (int x = lo.x(); x <= hi.x(); ++x) {
-          for (int y = lo.y(); y <= hi.y(); ++y) {
-            for (int z = lo.z(); z <= hi.z(); ++z) {
-              const std::int64_t k = key({x, y, z});
-              for (auto it = std::lower_bound(cells.begin(), cells.end(), std::make_pair(k, -1));
-                   it != cells.end() && it->first == k; ++it) {
-                const int i = it->second;
-                const int near = std::min({apart(i, t[0]), apart(i, t[1]), apart(i, t[2])});
-                if (near == 0) continue;
-                const Eigen::Vector3d& p = sheet[static_cast<std::size_t>(i)];
-                const Eigen::Vector3d to = closest_on_triangle(p, p0, p1, p2) - p;
-                // A neighbour's triangle counts where the sheet lies over it (folded onto it),
-                // not beside it (a cell's width away, its nearest point on its edge).
-                if (near == 1 && std::abs(to.dot(normal)) < kOver * to.norm()) continue;
-                double& g = gap[static_cast<std::size_t>(i)];
-                g = std::min(g, to.norm());
-              }
-            }
+  for (const Tri& t : grid.sheet_triangles()) {
+    const Eigen::Vector3d &p0 = sheet[static_cast<std::size_t>(t[0])], &p1 = sheet[static_cast<std::size_t>(t[1])],
+                          &p2 = sheet[static_cast<std::size_t>(t[2])];
+    Eigen::Vector3d normal = (p1 - p0).cross(p2 - p0);
+    if (normal.norm() > 1e-12) normal.normalize();
+    const Eigen::Vector3i lo = cell_of(p0.cwiseMin(p1).cwiseMin(p2) - Eigen::Vector3d::Constant(within));
+    const Eigen::Vector3i hi = cell_of(p0.cwiseMax(p1).cwiseMax(p2) + Eigen::Vector3d::Constant(within));
+    for (int x = lo.x(); x <= hi.x(); ++x) {
+      for (int y = lo.y(); y <= hi.y(); ++y) {
+        for (int z = lo.z(); z <= hi.z(); ++z) {
+          const std::int64_t k = key({x, y, z});
+          for (auto it = std::lower_bound(cells.begin(), cells.end(), std::make_pair(k, -1));
+               it != cells.end() && it->first == k; ++it) {
+            const int i = it->second;
+            const int near = std::min({grid.steps(i, t[0]), grid.steps(i, t[1]), grid.steps(i, t[2])});
+            if (near == 0) continue;
+            const Eigen::Vector3d& p = sheet[static_cast<std::size_t>(i)];
+            const Eigen::Vector3d to = closest_on_triangle(p, p0, p1, p2) - p;
+            // A neighbour's triangle counts where the sheet lies over it (folded onto it),
+            // not beside it (a cell's width away, its nearest point on its edge).
+            if (near == 1 && std::abs(to.dot(normal)) < kOver * to.norm()) continue;
+            double& g = gap[static_cast<std::size_t>(i)];
+            g = std::min(g, to.norm());
           }
         }
       }
@@ -175,16 +184,10 @@ std::vector<Vec3f> tube_shell_positions(const TubeGrid& grid, const std::vector<
   // The faces' normals summed at their corners (area-weighted): unlike the offset's normals,
   // they see the sheet fold along a cell's diagonal.
   std::vector<Eigen::Vector3d> face_normals(static_cast<std::size_t>(n), Eigen::Vector3d::Zero());
-  for (int r = 0; r + 1 < grid.rings; ++r) {
-    for (int c = 0; c < grid.columns; ++c) {
-      const int a = grid.index(r, c), b = grid.index(r, (c + 1) % grid.columns);
-      const int d = grid.index(r + 1, c), e = grid.index(r + 1, (c + 1) % grid.columns);
-      for (const Eigen::Vector3i& t : {Eigen::Vector3i(a, d, e), Eigen::Vector3i(a, e, b)}) {
-        const Eigen::Vector3d& p0 = sheet[static_cast<std::size_t>(t[0])];
-        const Eigen::Vector3d f = (sheet[static_cast<std::size_t>(t[1])] - p0).cross(sheet[static_cast<std::size_t>(t[2])] - p0);
-        for (int k = 0; k < 3; ++k) face_normals[static_cast<std::size_t>(t[k])] += f;
-      }
-    }
+  for (const Tri& t : grid.sheet_triangles()) {
+    const Eigen::Vector3d& p0 = sheet[static_cast<std::size_t>(t[0])];
+    const Eigen::Vector3d f = (sheet[static_cast<std::size_t>(t[1])] - p0).cross(sheet[static_cast<std::size_t>(t[2])] - p0);
+    for (int k = 0; k < 3; ++k) face_normals[static_cast<std::size_t>(t[k])] += f;
   }
   for (Eigen::Vector3d& f : face_normals) {
     if (f.norm() > 1e-12) f.normalize();

@@ -24,6 +24,12 @@ struct TubeGrid {
   int columns = 0;
   int size() const { return rings * columns; }
   int index(int ring, int column) const { return ring * columns + column; }
+  // Steps between points i and j across the sheet: along the ring (round the tube) or down
+  // the columns, whichever is more.
+  int steps(int i, int j) const;
+  // The sheet's own triangles (not the shell's): per cell, ring by ring, (r, c), (r + 1, c),
+  // (r + 1, c + 1) and (r, c), (r + 1, c + 1), (r, c + 1).
+  std::vector<Tri> sheet_triangles() const;
 };
 
 // The shell's triangles (the same for every shape of the sheet). Needs rings >= 2 and

@@ -175,14 +175,7 @@ struct ClothSimulation::Impl {
         if (r > 0) bends.emplace_back(i, right, g.index(r, (c + 2) % g.columns));
       }
     }
-    for (int r = 0; r + 1 < g.rings; ++r) {
-      for (int c = 0; c < g.columns; ++c) {
-        const int a = g.index(r, c), b = g.index(r, (c + 1) % g.columns);
-        const int d = g.index(r + 1, c), e = g.index(r + 1, (c + 1) % g.columns);
-        faces.emplace_back(a, d, e);
-        faces.emplace_back(a, e, b);
-      }
-    }
+    faces = g.sheet_triangles();
     for (const detail::BodyPrimitive& prim : garment.body.primitives) {
       if (!collides(character.skeleton, prim.joint)) continue;
       const auto [centre, radius] = bounding_sphere(prim);
@@ -318,17 +311,10 @@ struct ClothSimulation::Impl {
     x[at(b)] -= wb / (wa + wb) * correction;
   }
 
-  // How far particle i is from face f's nearest corner, in particles along a ring or down the
-  // cloth, whichever is more.
+  // How far particle i is from face f's nearest corner, in steps across the sheet.
   int apart_in_cloth(int i, const Eigen::Vector3i& f) const {
     const TubeGrid& g = garment.grid;
-    const int r = i / g.columns, c = i % g.columns;
-    int apart = std::numeric_limits<int>::max();
-    for (int k = 0; k < 3; ++k) {
-      const int dr = std::abs(f[k] / g.columns - r), dc = std::abs(f[k] % g.columns - c);
-      apart = std::min(apart, std::max(dr, std::min(dc, g.columns - dc)));
-    }
-    return apart;
+    return std::min({g.steps(i, f[0]), g.steps(i, f[1]), g.steps(i, f[2])});
   }
 
   // The cells of a spatial hash.
