@@ -78,20 +78,20 @@ double MeshQuery::distance(const Vec3f& p) const {
   return std::sqrt(impl_->tree.squared_distance(Point(p.x(), p.y(), p.z())));
 }
 
-std::vector<double> MeshQuery::crossings_along_x(double y, double z) const {
+std::vector<MeshQuery::Crossing> MeshQuery::crossings_along_x(double y, double z) const {
   const K::Line_3 line(Point(0, y, z), K::Vector_3(1, 0, 0));
   std::vector<Primitive::Id> hits;
   impl_->tree.all_intersected_primitives(line, std::back_inserter(hits));
-  std::vector<double> xs;
+  std::vector<Crossing> xs;
   for (const auto& id : hits) {
     const Triangle& t = *id;
     // Where the line meets the triangle's plane: n . ((x, y, z) - a) = 0.
     const Eigen::Vector3d a = to_eigen(t[0]), b = to_eigen(t[1]), c = to_eigen(t[2]);
     const Eigen::Vector3d n = (b - a).cross(c - a);
     if (std::fabs(n.x()) < 1e-300) continue;  // parallel to the line
-    xs.push_back(a.x() - (n.y() * (y - a.y()) + n.z() * (z - a.z())) / n.x());
+    xs.push_back({a.x() - (n.y() * (y - a.y()) + n.z() * (z - a.z())) / n.x(), n.x() < 0 ? 1 : -1});
   }
-  std::sort(xs.begin(), xs.end());
+  std::sort(xs.begin(), xs.end(), [](const Crossing& l, const Crossing& r) { return l.x < r.x; });
   return xs;
 }
 

@@ -27,8 +27,16 @@ class MeshQuery {
 
   ClosestPoint closest(const Vec3f& p) const;
   double distance(const Vec3f& p) const;
-  // x coordinates, sorted, where the line through (0, y, z) along x crosses the surface.
-  std::vector<double> crossings_along_x(double y, double z) const;
+  // Where the line through (0, y, z) along +x crosses the surface, sorted by x; direction is
+  // +1 where the line enters the solid (the triangle faces -x, outward normals assumed) and -1
+  // where it leaves. Summed up to a point, the winding number: for closed surfaces that may
+  // overlap one another (a garment over a body), a point is inside their union where it is
+  // not 0, where the parity of the crossings would call the overlap outside.
+  struct Crossing {
+    double x;
+    int direction;
+  };
+  std::vector<Crossing> crossings_along_x(double y, double z) const;
 
  private:
   struct Impl;

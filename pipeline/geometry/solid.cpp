@@ -140,21 +140,32 @@ Mesh remove_small_handles(const Mesh& mesh, double voxel, int max_radius, double
   const std::vector<std::uint8_t> inside = solid.inside;
   Mesh best = mesh;
   int best_handles = input_handles < 0 ? std::numeric_limits<int>::max() : input_handles;
-  for (int r = 1; r <= max_radius; ++r) {
-    solid.inside = morphology(solid, morphology(solid, inside, true, r), false, r);  // close
-    solid.inside = morphology(solid, morphology(solid, solid.inside, false, r), true, r);  // open
-    const Mesh surface = surface_of_solid(mesh, solid);
+  // Keeps the surface of `solid` when it has fewer handles than the best so far; true when it
+  // has none.
+  auto consider = [&](const SolidGrid& edited) {
+    const Mesh surface = surface_of_solid(mesh, edited);
     Mesh part = largest_component(surface);
-    // Opening must not cut off or erase a limb: no piece of note apart from the body, and
-    // the body's volume kept.
+    // The edit must not cut off or erase a limb: no piece of note apart from the body, and the
+    // body's volume kept.
     const double volume = enclosed_volume(part);
-    if (volume < 0.995 * enclosed_volume(surface) || volume < min_volume * input_volume) continue;
+    if (volume < 0.995 * enclosed_volume(surface) || volume < min_volume * input_volume) return false;
     const int handles = check_manifold(part).handles;
-    if (handles >= 0 && handles < best_handles) {
-      best = std::move(part);
-      best_handles = handles;
-      if (handles == 0) break;
-    }
+    if (handles < 0 || handles >= best_handles) return false;
+    best = std::move(part);
+    best_handles = handles;
+    return handles == 0;
+  };
+  for (int r = 1; r <= max_radius; ++r) {
+    const std::vector<std::uint8_t> closed =
+        morphology(solid, morphology(solid, inside, true, r), false, r);
+    // Closed then opened: tunnels filled and thin bridges (an arm merged with the body) cut.
+    solid.inside = morphology(solid, morphology(solid, closed, false, r), true, r);
+    if (consider(solid)) break;
+    // Closed only: a sheet as thin as the opening (a garment) is erased by it, and its
+    // perforations (holes of a re-meshing or a reconstruction through the thin cloth) are
+    // handles that the closing alone fills.
+    solid.inside = closed;
+    if (consider(solid)) break;
   }
   return best;
 }
@@ -175,20 +186,18 @@ Mesh remesh_fresh(const Mesh& mesh, double voxel, const Eigen::Vector3d& offset,
   const float band = static_cast<float>(2 * voxel);
   grid.values.assign(static_cast<std::size_t>(grid.nx) * grid.ny * grid.nz, band);
 
-  // Inside by the parity of surface crossings along x, row by row.
+  // Inside by the winding number of the surface crossings along x, row by row: a garment's
+  // shell that overlaps the body is inside their union, not outside it as by parity.
   tbb::parallel_for(0, grid.nz, [&](int z) {
     for (int y = 0; y < grid.ny; ++y) {
       const Eigen::Vector3d row = grid.point(0, y, z);
-      const std::vector<double> xs = query.crossings_along_x(row.y(), row.z());
+      const std::vector<MeshQuery::Crossing> xs = query.crossings_along_x(row.y(), row.z());
       std::size_t next = 0;
-      bool inside = false;
+      int winding = 0;
       for (int x = 0; x < grid.nx; ++x) {
         const double px = row.x() + voxel * x;
-        while (next < xs.size() && xs[next] < px) {
-          inside = !inside;
-          ++next;
-        }
-        if (inside) grid.values[grid.index(x, y, z)] = -band;
+        while (next < xs.size() && xs[next].x < px) winding += xs[next++].direction;
+        if (winding != 0) grid.values[grid.index(x, y, z)] = -band;
       }
     }
   });

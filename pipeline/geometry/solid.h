@@ -37,10 +37,11 @@ SolidGrid voxelize_solid(const Mesh& mesh, double voxel, int padding = 1);
 Mesh surface_of_solid(const Mesh& mesh, const SolidGrid& solid);
 
 // The mesh's surface without its handles thinner than a few voxels: noise tunnels of a
-// reconstruction, or an arm merged with the body where it touched it. Its solid, voxelised at
-// `voxel`, is closed then opened by r voxels for r = 1, 2, ... max_radius, and the first result
-// whose largest component has no handle, holds all but 0.5 % of the result's volume (opening
-// cut nothing off) and keeps at least `min_volume` of the input's volume is returned (its
+// reconstruction, an arm merged with the body where it touched it, or holes through a thin
+// garment. Its solid, voxelised at `voxel`, is closed then opened by r voxels, else only closed
+// (the opening erases a sheet a few voxels thin), for r = 1, 2, ... max_radius, and the first
+// result whose largest component has no handle, holds all but 0.5 % of the result's volume
+// (nothing cut off) and keeps at least `min_volume` of the input's volume is returned (its
 // largest component); failing that, the one of the fewest handles, or the input itself when
 // no result has fewer handles than it.
 Mesh remove_small_handles(const Mesh& mesh, double voxel, int max_radius,
@@ -49,7 +50,8 @@ Mesh remove_small_handles(const Mesh& mesh, double voxel, int max_radius,
 // The same closed surface with fresh connectivity: the zero set of its signed distance sampled
 // on a grid of `voxel` shifted by `offset` (a fraction of a voxel gives unrelated vertices and
 // triangles). With noise_sigma > 0 vertices move along their normals by Gaussian noise [m].
-// The mesh must be closed (inside/outside by ray parity). Throws InputError on an empty mesh.
+// The mesh must be closed and oriented outward; closed parts that overlap (a garment over a
+// body) are re-meshed as their union (inside by winding number). Throws InputError on an empty mesh.
 Mesh remesh_fresh(const Mesh& mesh, double voxel, const Eigen::Vector3d& offset,
                   double noise_sigma = 0, unsigned seed = 1);
 

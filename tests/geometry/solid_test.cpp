@@ -47,6 +47,52 @@ TEST(Solid, SmallHandlesAreRemovedAndLargeOnesKept) {
   EXPECT_EQ(check_manifold(kept).handles, 1);
 }
 
+// A garment over a body: a thin shell (a bowl 10 mm thick, like a skirt's cloth) perforated by
+// small holes, as an 8 mm re-meshing or a reconstruction leaves it. The opening that cuts thin
+// bridges erases the sheet; closing alone fills the holes and keeps it.
+TEST(Solid, HolesThroughAThinSheetAreFilledAndTheSheetKept) {
+  const std::vector<Eigen::Vector3d> holes = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0},
+                                              {0, 0, 1}, {0.6, 0.6, 0.53}};  // where, from the centre
+  auto bowl = [&](const Eigen::Vector3d& p) {
+    double d = std::max(std::fabs(p.norm() - 0.15) - 0.005, -(p.z() + 0.05));
+    for (const Eigen::Vector3d& h : holes) {  // a tunnel of 3 mm radius through the sheet
+      const Eigen::Vector3d axis = h.normalized();
+      if (p.dot(axis) > 0) d = std::max(d, 0.003 - (p - p.dot(axis) * axis).norm());
+    }
+    return d;
+  };
+  const Mesh mesh = test::isosurface_of(bowl, {-0.17, -0.17, -0.07}, {0.17, 0.17, 0.17}, 0.002);
+  ASSERT_EQ(check_manifold(mesh).components, 1);
+  ASSERT_EQ(check_manifold(mesh).handles, static_cast<int>(holes.size()));  // a handle a hole
+  const Mesh cleaned = remove_small_handles(mesh, 0.005, 1);
+  EXPECT_EQ(check_manifold(cleaned).handles, 0);
+  EXPECT_NEAR(enclosed_volume(cleaned), enclosed_volume(mesh), 0.1 * enclosed_volume(mesh));
+  const SurfaceQuery input(mesh);
+  int far = 0;
+  for (const Vec3f& p : cleaned.positions) far += input.closest(p, 1.0f).distance > 0.003f;
+  EXPECT_LT(far, static_cast<int>(cleaned.num_vertices() / 20));
+}
+
+// Closed surfaces that overlap, as a garment's shell and the body it presses into, re-mesh as
+// their union: by the parity of crossings their overlap would be outside, a hollow inside.
+TEST(Solid, RemeshFreshOfOverlappingPartsIsTheirUnion) {
+  Mesh both = test::make_icosphere(4, 0.2f);
+  const Mesh other = test::make_icosphere(4, 0.2f);
+  const int first = static_cast<int>(both.num_vertices());
+  for (const Vec3f& p : other.positions) both.positions.push_back(p + Vec3f(0.2f, 0, 0));
+  for (const Tri& t : other.triangles) both.triangles.push_back({t[0] + first, t[1] + first, t[2] + first});
+  const Mesh fresh = remesh_fresh(both, 0.01, {0.0031, 0.0017, 0.0043});
+  EXPECT_EQ(check_manifold(fresh).components, 1);
+  EXPECT_EQ(check_manifold(fresh).handles, 0);
+  // No vertex inside either ball (the grid rounds the crease where they meet by a voxel): by
+  // parity the lens they share would be hollow, its walls deep inside one ball or the other.
+  int buried = 0;
+  for (const Vec3f& p : fresh.positions) {
+    buried += std::min(p.norm(), (p - Vec3f(0.2f, 0, 0)).norm()) < 0.18f;
+  }
+  EXPECT_EQ(buried, 0);
+}
+
 TEST(Solid, RemeshFreshKeepsTheSurfaceAndChangesTheConnectivity) {
   const Mesh sphere = test::make_icosphere(4, 0.3f);
   const Mesh fresh = remesh_fresh(sphere, 0.01, {0.0031, 0.0017, 0.0043});

@@ -265,8 +265,9 @@ TEST(Garment, SkirtDoesNotPenetrateTheBody) {
       const MeshQuery body(body_part(c, m));
       for (std::size_t v = first; v < m.num_vertices(); ++v) {
         const Vec3f& p = m.positions[v];
-        const std::vector<double> xs = body.crossings_along_x(p.y(), p.z());
-        const auto before = std::count_if(xs.begin(), xs.end(), [&](double x) { return x < p.x(); });
+        const std::vector<MeshQuery::Crossing> xs = body.crossings_along_x(p.y(), p.z());
+        const auto before = std::count_if(xs.begin(), xs.end(),
+                                          [&](const MeshQuery::Crossing& x) { return x.x < p.x(); });
         if (before % 2 == 1) {
           ++inside;
           deepest = std::max(deepest, body.distance(p));
