@@ -9,19 +9,6 @@
 
 namespace fourd::align::detail {
 
-// The rotation closest to m in the Frobenius norm (polar decomposition).
-Mat3d nearest_rotation(const Mat3d& m) {
-  Eigen::JacobiSVD<Mat3d> svd(m, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Mat3d u = svd.matrixU();
-  const Mat3d& v = svd.matrixV();
-  Mat3d r = u * v.transpose();
-  if (r.determinant() < 0) {
-    u.col(2) *= -1;
-    r = u * v.transpose();
-  }
-  return r;
-}
-
 // Closest compatible surface points of every vertex, robustly weighted.
 std::vector<Correspondence> find_correspondences(const std::vector<Vec3f>& positions,
                                                  const std::vector<Vec3f>& normals,

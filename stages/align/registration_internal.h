@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "pipeline/core/mesh.h"
+#include "pipeline/geometry/rotation.h"
 #include "pipeline/geometry/surface_query.h"
 #include "stages/align/registration.h"
 
@@ -36,9 +37,6 @@ inline Mat3d rotation_from_vector(const Vec3d& w) {
   if (angle < 1e-12) return Mat3d::Identity();
   return Eigen::AngleAxisd(angle, w / angle).toRotationMatrix();
 }
-
-// The rotation closest to m in the Frobenius norm (polar decomposition).
-Mat3d nearest_rotation(const Mat3d& m);
 
 // Cauchy weight: down-weights outliers (wrong matches, topology merges) smoothly.
 inline double robust_weight(double residual, double scale) {
