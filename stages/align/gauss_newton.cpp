@@ -89,6 +89,8 @@ class GraphSystem {
     }
   }
   void add(int a, int b, const Mat6& m) { add(parts_[0], a, b, m); }
+  // The block H(a, b), a <= b, of a part. Thread-safe for distinct parts.
+  Mat6& block_of(Part& part, int a, int b) const { return part.blocks[block(a, b)]; }
   static void add_gradient(Part& part, int a, const Vec6& g) { part.gradient.segment<6>(6 * a) += g; }
   void add_gradient(int a, const Vec6& g) { add_gradient(parts_[0], a, g); }
   // Adds parts 1.. into part 0, in order. The parts stay allocated: the next clear() zeroes
@@ -160,20 +162,25 @@ int point_jacobian(const TemplateModel& model, const DeformationState& state, co
 }
 
 // Adds |P^(1/2) (point - target)|^2 for a point with the given node Jacobians, residual
-// e = point - target and symmetric weight matrix P.
+// e = point - target and symmetric weight matrix P. With J_a = [S_a, w_a I], the block of nodes
+// a <= b is J_a^T P J_b = [(P S_a)^T S_b, w_b (P S_a)^T; w_a P S_b, w_a w_b P]: P S_a once per
+// node, not per pair.
 void add_point_term(const NodeJacobian* jac, int nodes, const Mat3d& p, const Vec3d& e,
                     const GraphSystem& system, GraphSystem::Part& part) {
   const Vec3d pe = p * e;
+  Mat3d ps[3 * 8];
+  for (int a = 0; a < nodes; ++a) ps[a] = p * jac[a].s;
   for (int a = 0; a < nodes; ++a) {
     Vec6 grad;
     grad << jac[a].s.transpose() * pe, jac[a].w * pe;
     GraphSystem::add_gradient(part, jac[a].node, grad);
-    const Mat3d sp = jac[a].s.transpose() * p;
     for (int b = 0; b < nodes; ++b) {
       if (jac[a].node > jac[b].node) continue;
-      Mat6 block;
-      block << sp * jac[b].s, jac[b].w * sp, jac[a].w * p * jac[b].s, jac[a].w * jac[b].w * p;
-      system.add(part, jac[a].node, jac[b].node, block);
+      Mat6& block = system.block_of(part, jac[a].node, jac[b].node);
+      block.topLeftCorner<3, 3>().noalias() += ps[a].transpose() * jac[b].s;
+      block.topRightCorner<3, 3>() += jac[b].w * ps[a].transpose();
+      block.bottomLeftCorner<3, 3>() += jac[a].w * ps[b];
+      block.bottomRightCorner<3, 3>() += (jac[a].w * jac[b].w) * p;
     }
   }
 }
