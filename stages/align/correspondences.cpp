@@ -38,6 +38,7 @@ FrameSamples sample_frame(const SurfaceQuery& target, std::size_t count) {
   const std::size_t stride = std::max<std::size_t>(1, positions.size() / std::max<std::size_t>(count, 1));
   for (std::size_t i = 0; i < positions.size(); i += stride) {
     if (normals[i].isZero()) continue;  // not on any triangle
+    samples.vertices.push_back(static_cast<int>(i));
     samples.points.push_back(positions[i]);
     samples.normals.push_back(normals[i]);
     samples.confidence.push_back(target.vertex_confidence(i));

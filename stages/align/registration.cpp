@@ -49,9 +49,20 @@ std::vector<Vec3f> vertex_normals(const std::vector<Vec3f>& positions,
 Eigen::Isometry3d rigid_icp(const std::vector<Vec3f>& points, const std::vector<Vec3f>& normals,
                             const SurfaceQuery& target, int iterations, double max_distance,
                             const RegistrationOptions& options) {
+  std::vector<Correspondence> matches;
+  return detail::rigid_icp(points, normals, target, iterations, max_distance, options, &matches);
+}
+
+namespace detail {
+
+Eigen::Isometry3d rigid_icp(const std::vector<Vec3f>& points, const std::vector<Vec3f>& normals,
+                            const SurfaceQuery& target, int iterations, double max_distance,
+                            const RegistrationOptions& options,
+                            std::vector<Correspondence>* last_matches) {
   Eigen::Isometry3d total = Eigen::Isometry3d::Identity();
   std::vector<Vec3f> current = points, current_normals = normals;
-  std::vector<Correspondence> matches;
+  std::vector<Correspondence>& matches = *last_matches;
+  matches.clear();
   for (int it = 0; it < iterations; ++it) {
     matches = find_correspondences(current, current_normals, target, max_distance,
                                    std::max(options.robust_scale, max_distance / 3), options,
@@ -99,6 +110,8 @@ Eigen::Isometry3d rigid_icp(const std::vector<Vec3f>& points, const std::vector<
   return total;
 }
 
+}  // namespace detail
+
 namespace {
 
 // One registration from `start`, the landmarks pulling the coarse levels. It begins at level
@@ -115,10 +128,14 @@ DeformationState register_pass(const TemplateModel& model, const DeformationStat
     for (std::size_t i = 0; i < data_vertices.size(); ++i) out[i] = all[data_vertices[i]];
     return out;
   };
+  // The latest matches both ways: the next search starts from them (the rigid fit's, of the
+  // same vertices, for the first).
+  std::vector<Correspondence> matches;
+  std::vector<ReverseMatch> reverse;
   if (options.rigid_iterations > 0) {
-    const Eigen::Isometry3d motion =
-        rigid_icp(of_data(positions), of_data(vertex_normals(positions, model.rest.triangles)),
-                  target, options.rigid_iterations, options.max_distance, options);
+    const Eigen::Isometry3d motion = detail::rigid_icp(
+        of_data(positions), of_data(vertex_normals(positions, model.rest.triangles)), target,
+        options.rigid_iterations, options.max_distance, options, &matches);
     apply_rigid(model, motion, &state);
   }
 
@@ -126,9 +143,6 @@ DeformationState register_pass(const TemplateModel& model, const DeformationStat
       options.reverse_weight > 0 ? sample_frame(target, data_vertices.size()) : FrameSamples{};
   GraphGaussNewton solver(model, options.reverse_weight > 0);
   FittedSurface fitted;
-  // The latest matches both ways: the next search starts from them.
-  std::vector<Correspondence> matches;
-  std::vector<ReverseMatch> reverse;
   const int levels = static_cast<int>(options.stiffness.size());
   for (int level = std::min(first_level, levels - 1); level < levels; ++level) {
     // The matching distance shrinks geometrically from max_distance to final_max_distance.
@@ -156,7 +170,7 @@ DeformationState register_pass(const TemplateModel& model, const DeformationStat
   }
   state.positions = deform_with_graph(model, state);
   const std::vector<Vec3f> graph_positions = state.positions;
-  refine_vertices(model, target, options, &state.positions);
+  refine_vertices(model, target, options, matches, samples, reverse, &state.positions);
   unfold(model, graph_positions, options.unfold_rings, &state.positions);
   return state;
 }
