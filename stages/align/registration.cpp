@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fmt/format.h>
+#include <functional>
 #include <limits>
 
 #include "pipeline/core/error.h"
@@ -215,26 +216,46 @@ DeformationState register_to_surface(const TemplateModel& model, const Deformati
   };
   std::vector<Candidate> candidates;
   candidates.push_back({std::move(fit), first});
-  auto attempt = [&](const DeformationState& from, const char* what, int first_level = 0) {
-    DeformationState retry =
-        register_pass(model, from, target, options, tips.landmarks, first_level);
-    const FitStats stats = evaluate_fit(model, retry.positions, target, options);
-    log::debug("{}: both-ways rms {:.1f} mm -> {:.1f} mm, stretch {:.3f} -> {:.3f}", what,
-               1e3 * two_sided_rms(first), 1e3 * two_sided_rms(stats), first.stretch_rms,
-               stats.stretch_rms);
-    candidates.push_back({std::move(retry), stats});
+  // The retries, each from its own start (computed in its task).
+  struct Retry {
+    const char* what;
+    std::function<DeformationState()> from;
+    int first_level = 0;
   };
+  std::vector<Retry> retries;
   // A tip was missed: register again from the same start, pulled by the tips.
-  if (tips.missed) attempt(start, "tip landmarks");
+  if (tips.missed) retries.push_back({"tip landmarks", [&] { return start; }});
   // The limbs turned about their joints towards the tips first (the tips may all be covered
   // by a limb bent at the wrong joint).
   if (options.limb_fraction > 0) {
-    attempt(turn_limbs_to_tips(model, start, tips.landmarks, options.limb_fraction,
-                               options.limb_blend),
-            "limbs turned to the tips");
-    attempt(bend_limbs_along_frame(model, start, tips.landmarks, tips.frame_tips, tips.frame,
-                                   tips.frame_rings, options.limb_fraction, options.limb_band),
-            "limbs bent along the frame", options.bent_first_level);
+    retries.push_back({"limbs turned to the tips", [&] {
+                         return turn_limbs_to_tips(model, start, tips.landmarks,
+                                                   options.limb_fraction, options.limb_blend);
+                       }});
+    retries.push_back({"limbs bent along the frame",
+                       [&] {
+                         return bend_limbs_along_frame(model, start, tips.landmarks,
+                                                       tips.frame_tips, tips.frame,
+                                                       tips.frame_rings, options.limb_fraction,
+                                                       options.limb_band);
+                       },
+                       options.bent_first_level});
+  }
+  // They do not depend on each other: run side by side (each pass's own loops are parallel
+  // too, and much of a pass - the factorisations, the system's assembly - is serial), each
+  // with the same result as alone.
+  std::vector<Candidate> retried(retries.size());
+  tbb::parallel_for(std::size_t{0}, retries.size(), [&](std::size_t i) {
+    retried[i].state = register_pass(model, retries[i].from(), target, options, tips.landmarks,
+                                     retries[i].first_level);
+    retried[i].stats = evaluate_fit(model, retried[i].state.positions, target, options);
+  });
+  for (std::size_t i = 0; i < retries.size(); ++i) {
+    const FitStats& stats = retried[i].stats;
+    log::debug("{}: both-ways rms {:.1f} mm -> {:.1f} mm, stretch {:.3f} -> {:.3f}",
+               retries[i].what, 1e3 * two_sided_rms(first), 1e3 * two_sided_rms(stats),
+               first.stretch_rms, stats.stretch_rms);
+    candidates.push_back(std::move(retried[i]));
   }
   // A retry must fit clearly closer than the first fit (a tip matched to the wrong limb, a
   // foot to the other foot, can still fit a little closer); of those, the least stretched of
