@@ -64,40 +64,60 @@ class GraphSystem {
   // Partial sums of the matrix blocks and the gradient. The data terms are summed in a fixed
   // number of parts over fixed ranges of points, in parallel, and the parts are added in their
   // order: the result does not depend on the thread count or scheduling (runs are repeatable
-  // bit for bit).
+  // bit for bit). A part's points (neighbours on the surface) touch a small share of the
+  // blocks: the parts but the first remember which, and only those are added and zeroed again
+  // (all of them would be ~2 MB per part, every step).
   struct Part {
     std::vector<Mat6> blocks;
     Eigen::VectorXd gradient;
+    std::vector<int> touched;         // the blocks written since the last clear()
+    std::vector<char> is_touched;     // per block
   };
 
   // Zeroes `parts` partial sums (at least one: part 0, which add() and add_gradient() fill).
+  // The parts stay allocated: zeroed instead of allocated again every Gauss-Newton step.
   void clear(int parts) {
     parts_.resize(std::max(parts, 1));
-    for (Part& part : parts_) {
-      part.blocks.assign(pairs_.size(), Mat6::Zero());  // reuses the storage
+    for (std::size_t i = 0; i < parts_.size(); ++i) {
+      Part& part = parts_[i];
+      if (i == 0 || part.blocks.size() != pairs_.size()) {
+        part.blocks.assign(pairs_.size(), Mat6::Zero());  // reuses the storage
+        part.is_touched.assign(pairs_.size(), 0);
+      } else {
+        for (int b : part.touched) {
+          part.blocks[b].setZero();
+          part.is_touched[b] = 0;
+        }
+      }
+      part.touched.clear();
       part.gradient.setZero(6 * nodes_);
     }
   }
   Part& part(int i) { return parts_[i]; }
-  // H(a, b) += m for a <= b (the lower triangle follows by symmetry). Thread-safe for distinct
-  // parts.
+  // The block H(a, b), a <= b, of a part, to add to. Thread-safe for distinct parts.
+  Mat6& block_of(Part& part, int a, int b) const {
+    const int index = block(a, b);
+    if (!part.is_touched[index]) {
+      part.is_touched[index] = 1;
+      part.touched.push_back(index);
+    }
+    return part.blocks[index];
+  }
+  // H(a, b) += m (the lower triangle follows by symmetry). Thread-safe for distinct parts.
   void add(Part& part, int a, int b, const Mat6& m) const {
     if (a <= b) {
-      part.blocks[block(a, b)] += m;
+      block_of(part, a, b) += m;
     } else {
-      part.blocks[block(b, a)] += m.transpose();
+      block_of(part, b, a) += m.transpose();
     }
   }
   void add(int a, int b, const Mat6& m) { add(parts_[0], a, b, m); }
-  // The block H(a, b), a <= b, of a part. Thread-safe for distinct parts.
-  Mat6& block_of(Part& part, int a, int b) const { return part.blocks[block(a, b)]; }
   static void add_gradient(Part& part, int a, const Vec6& g) { part.gradient.segment<6>(6 * a) += g; }
   void add_gradient(int a, const Vec6& g) { add_gradient(parts_[0], a, g); }
-  // Adds parts 1.. into part 0, in order. The parts stay allocated: the next clear() zeroes
-  // them instead of allocating them again every Gauss-Newton step.
+  // Adds parts 1.. into part 0, in order (a block a part did not touch is zero in it).
   void sum_parts() {
     for (std::size_t i = 1; i < parts_.size(); ++i) {
-      for (std::size_t b = 0; b < pairs_.size(); ++b) parts_[0].blocks[b] += parts_[i].blocks[b];
+      for (int b : parts_[i].touched) parts_[0].blocks[b] += parts_[i].blocks[b];
       parts_[0].gradient += parts_[i].gradient;
     }
   }
