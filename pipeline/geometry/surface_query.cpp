@@ -1,6 +1,7 @@
 #include "pipeline/geometry/surface_query.h"
 
 #include <embree3/rtcore.h>
+#include <tbb/parallel_for.h>
 
 #include <Eigen/Geometry>
 
@@ -18,10 +19,21 @@ namespace {
 constexpr float kFirstRadius = 0.02f;  // [m]
 constexpr float kRadiusGrowth = 8.0f;
 
+// A kept triangle as the search reads it: its plane (unit normal, zero once the triangle has
+// degenerated, and offset n . a), which rejects most candidates, and apart from it (so that
+// rejecting reads 16 bytes) its corners, not reached through the vertex indices.
+struct alignas(16) Plane {
+  Vec3f normal;
+  float offset;
+};
+struct Corners {
+  Vec3f a, b, c;
+};
+
 struct QueryState {
-  const std::vector<Vec3f>* positions;
+  const std::vector<Plane>* planes;
+  const std::vector<Corners>* corners;
   const std::vector<Tri>* triangles;
-  const std::vector<Vec3f>* face_normals;
   const std::vector<int>* source;
   const std::vector<float>* confidence;
   Vec3f p;
@@ -34,15 +46,21 @@ struct QueryState {
 bool point_query_callback(RTCPointQueryFunctionArguments* args) {
   auto* state = static_cast<QueryState*>(args->userPtr);
   const unsigned prim = args->primID;
-  const Vec3f& n = (*state->face_normals)[prim];
+  const Plane& plane = (*state->planes)[prim];
+  const Vec3f& n = plane.normal;
   if (n.isZero()) return false;  // degenerated since the query was made (move_vertices)
   if (state->use_normal && n.dot(state->normal) < state->min_cos) return false;
-  const Tri& t = (*state->triangles)[prim];
+  // Embree calls back for every triangle of a leaf whose box meets the sphere. A triangle is no
+  // nearer than its plane: one that far (with a margin well above the rounding of either
+  // distance, about 1e-7 m for coordinates of metres) cannot be the answer, and the exact
+  // distance below is not needed.
+  const float radius = args->query->radius;
+  if (std::abs(n.dot(state->p) - plane.offset) > radius * (1 + 1e-4f) + 1e-6f) return false;
+  const Corners& t = (*state->corners)[prim];
   Vec3f bary;
-  Vec3f q = closest_point_on_triangle(state->p, (*state->positions)[t[0]],
-                                      (*state->positions)[t[1]], (*state->positions)[t[2]], &bary);
+  Vec3f q = closest_point_on_triangle(state->p, t.a, t.b, t.c, &bary);
   float d = (q - state->p).norm();
-  if (d >= args->query->radius) return false;
+  if (d >= radius) return false;
   args->query->radius = d;  // shrink the search: later candidates must be closer
   SurfaceHit& hit = *state->hit;
   hit.found = true;
@@ -52,7 +70,10 @@ bool point_query_callback(RTCPointQueryFunctionArguments* args) {
   hit.barycentric = bary;
   hit.distance = d;
   const std::vector<float>& c = *state->confidence;
-  hit.confidence = c.empty() ? 1.0f : bary[0] * c[t[0]] + bary[1] * c[t[1]] + bary[2] * c[t[2]];
+  if (!c.empty()) {
+    const Tri& v = (*state->triangles)[prim];
+    hit.confidence = bary[0] * c[v[0]] + bary[1] * c[v[1]] + bary[2] * c[v[2]];
+  }
   return true;
 }
 
@@ -105,7 +126,8 @@ Vec3f closest_point_on_triangle(const Vec3f& p, const Vec3f& a, const Vec3f& b, 
 struct SurfaceQuery::Impl {
   std::vector<Vec3f> positions;
   std::vector<Tri> triangles;  // the non-degenerate ones
-  std::vector<Vec3f> face_normals;
+  std::vector<Plane> planes;      // per kept triangle
+  std::vector<Corners> corners;  // per kept triangle
   std::vector<int> source;  // index of each kept triangle in the input mesh
   std::vector<int> kept;    // per input triangle, its index among the kept ones (-1: not kept)
   std::vector<float> confidence;
@@ -118,11 +140,18 @@ struct SurfaceQuery::Impl {
 
 namespace {
 
-// The unit normal of triangle t over `positions`; zero when it is degenerate.
-Vec3f face_normal(const std::vector<Vec3f>& positions, const Tri& t) {
-  const Vec3f n = (positions[t[1]] - positions[t[0]]).cross(positions[t[2]] - positions[t[0]]);
+// The corners of triangle t over `positions`.
+Corners corners_of(const std::vector<Vec3f>& positions, const Tri& t) {
+  return {positions[t[0]], positions[t[1]], positions[t[2]]};
+}
+
+// The plane of a triangle; a zero normal when it is degenerate.
+Plane plane_of(const Corners& c) {
+  const Vec3f n = (c.b - c.a).cross(c.c - c.a);
   const float len = n.norm();
-  return len > 0 ? Vec3f(n / len) : Vec3f::Zero();
+  if (!(len > 0)) return {Vec3f::Zero(), 0.0f};
+  const Vec3f unit = n / len;
+  return {unit, unit.dot(c.a)};
 }
 
 }  // namespace
@@ -132,14 +161,17 @@ SurfaceQuery::SurfaceQuery(const Mesh& mesh, bool deformable) : impl_(std::make_
   s.positions = mesh.positions;
   s.confidence = mesh.confidence;
   s.triangles.reserve(mesh.triangles.size());
-  s.face_normals.reserve(mesh.triangles.size());
+  s.corners.reserve(mesh.triangles.size());
+  s.planes.reserve(mesh.triangles.size());
   for (std::size_t f = 0; f < mesh.triangles.size(); ++f) {
     const Tri& t = mesh.triangles[f];
-    const Vec3f n = face_normal(s.positions, t);
-    if (n.isZero()) continue;
+    const Corners c = corners_of(s.positions, t);
+    const Plane plane = plane_of(c);
+    if (plane.normal.isZero()) continue;
     s.triangles.push_back(t);
     for (int k = 0; k < 3; ++k) s.bounds.extend(s.positions[t[k]]);
-    s.face_normals.push_back(n);
+    s.corners.push_back(c);
+    s.planes.push_back(plane);
     s.source.push_back(static_cast<int>(f));
   }
   s.kept.assign(mesh.triangles.size(), -1);
@@ -153,12 +185,12 @@ void SurfaceQuery::move_vertices(const std::vector<Vec3f>& positions) {
     throw Error("SurfaceQuery::move_vertices: the vertex count changed");
   }
   s.positions = positions;
+  tbb::parallel_for(std::size_t{0}, s.triangles.size(), [&](std::size_t f) {
+    s.corners[f] = corners_of(s.positions, s.triangles[f]);
+    s.planes[f] = plane_of(s.corners[f]);
+  });
   s.bounds.setEmpty();
-  for (std::size_t f = 0; f < s.triangles.size(); ++f) {
-    const Tri& t = s.triangles[f];
-    s.face_normals[f] = face_normal(s.positions, t);
-    for (int k = 0; k < 3; ++k) s.bounds.extend(s.positions[t[k]]);
-  }
+  for (const Corners& c : s.corners) s.bounds.extend(c.a).extend(c.b).extend(c.c);
   if (!s.triangles.empty()) update_embree_vertices(s.scene, s.positions);
 }
 
@@ -168,8 +200,7 @@ SurfaceHit SurfaceQuery::closest(const Vec3f& p, float max_distance, const Vec3f
                                  float min_cos, int near_triangle) const {
   SurfaceHit hit;
   if (impl_->triangles.empty()) return hit;
-  QueryState state{&impl_->positions, &impl_->triangles, &impl_->face_normals, &impl_->source,
-                   &impl_->confidence, p, normal, min_cos, !normal.isZero(), &hit};
+  QueryState state{&impl_->planes, &impl_->corners, &impl_->triangles, &impl_->source, &impl_->confidence, p, normal, min_cos, !normal.isZero(), &hit};
   // Every triangle within `radius` of p (the callback shrinks it as it finds closer ones).
   auto search = [&](float radius) {
     RTCPointQuery query;
@@ -188,11 +219,10 @@ SurfaceHit SurfaceQuery::closest(const Vec3f& p, float max_distance, const Vec3f
                        ? impl_->kept[near_triangle]
                        : -1;
   if (near >= 0) {
-    const Vec3f& n = impl_->face_normals[near];
-    const Tri& t = impl_->triangles[near];
+    const Corners& t = impl_->corners[near];
+    const Vec3f& n = impl_->planes[near].normal;
     Vec3f bary;
-    const float d = (closest_point_on_triangle(p, impl_->positions[t[0]], impl_->positions[t[1]],
-                                               impl_->positions[t[2]], &bary) - p).norm();
+    const float d = (closest_point_on_triangle(p, t.a, t.b, t.c, &bary) - p).norm();
     const float bound = d * (1 + 1e-5f) + 1e-9f;
     if (!n.isZero() && !(state.use_normal && n.dot(normal) < min_cos) && bound < max_distance) {
       search(bound);

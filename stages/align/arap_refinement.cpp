@@ -49,8 +49,60 @@ SparseMatrix laplacian(const TemplateModel& model) {
   return l;
 }
 
+namespace {
+
+// Per template vertex, a search start: the graph match of the data vertex nearest it in edges
+// (breadth first from all data vertices at once; a data vertex its own).
+std::vector<Correspondence> matches_near(const TemplateModel& model,
+                                         const std::vector<Correspondence>& graph_matches) {
+  std::vector<Correspondence> out(model.rest.num_vertices());
+  if (graph_matches.size() != model.data_vertices.size()) return out;
+  std::vector<int> queue;
+  std::vector<char> seen(out.size(), 0);
+  for (std::size_t i = 0; i < graph_matches.size(); ++i) {
+    const int v = model.data_vertices[i];
+    out[v].triangle = graph_matches[i].triangle;
+    seen[v] = 1;
+    queue.push_back(v);
+  }
+  for (std::size_t head = 0; head < queue.size(); ++head) {
+    const int v = queue[head];
+    for (int w : model.rings[v]) {
+      if (seen[w]) continue;
+      seen[w] = 1;
+      out[w].triangle = out[v].triangle;
+      queue.push_back(w);
+    }
+  }
+  return out;
+}
+
+// Per sample of `samples`, a search start: the graph's reverse match of the last graph sample at
+// or before its frame vertex (both are spread over the frame's vertices in order).
+std::vector<ReverseMatch> reverse_near(const FrameSamples& samples,
+                                       const FrameSamples& graph_samples,
+                                       const std::vector<ReverseMatch>& graph_reverse) {
+  std::vector<ReverseMatch> out(samples.points.size());
+  if (graph_reverse.size() != graph_samples.vertices.size()) return out;
+  std::size_t g = 0;
+  for (std::size_t i = 0; i < samples.vertices.size(); ++i) {
+    while (g + 1 < graph_samples.vertices.size() &&
+           graph_samples.vertices[g + 1] <= samples.vertices[i]) {
+      ++g;
+    }
+    if (g < graph_reverse.size()) out[i].face = graph_reverse[g].face;
+  }
+  return out;
+}
+
+}  // namespace
+
 void refine_vertices(const TemplateModel& model, const SurfaceQuery& target,
-                     const RegistrationOptions& options, std::vector<Vec3f>* positions) {
+                     const RegistrationOptions& options,
+                     const std::vector<Correspondence>& graph_matches,
+                     const FrameSamples& graph_samples,
+                     const std::vector<ReverseMatch>& graph_reverse,
+                     std::vector<Vec3f>* positions) {
   const int nv = static_cast<int>(positions->size());
   const SparseMatrix l = laplacian(model);
   Eigen::SimplicialLDLT<SparseMatrix> solver;
@@ -59,13 +111,14 @@ void refine_vertices(const TemplateModel& model, const SurfaceQuery& target,
   const FrameSamples samples =
       options.reverse_weight > 0 ? sample_frame(target, model.rest.num_vertices()) : FrameSamples{};
   FittedSurface fitted;
-  // The latest matches both ways: the next search starts from them.
-  std::vector<Correspondence> matches;
-  std::vector<ReverseMatch> reverse;
+  // The latest matches both ways: the next search starts from them (the first from the graph
+  // fit's).
+  std::vector<Correspondence> matches = matches_near(model, graph_matches);
+  std::vector<ReverseMatch> reverse = reverse_near(samples, graph_samples, graph_reverse);
   for (int it = 0; it < options.refine_iterations; ++it) {
     const std::vector<Vec3f> normals = vertex_normals(*positions, model.rest.triangles);
     matches = find_correspondences(*positions, normals, target, options.final_max_distance,
-                                   options.robust_scale, options, it > 0 ? &matches : nullptr);
+                                   options.robust_scale, options, &matches);
     const std::vector<Mat3d> rotations = local_rotations(model, *positions);
     SparseMatrix a = l;
     Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(nv, 3);
@@ -75,7 +128,7 @@ void refine_vertices(const TemplateModel& model, const SurfaceQuery& target,
       // Laplacian's pattern already does.
       reverse = find_reverse_correspondences(model, *positions, samples,
                                              options.final_max_distance, options.robust_scale,
-                                             options, &fitted, it > 0 ? &reverse : nullptr);
+                                             options, &fitted, &reverse);
       const double scale = options.refine_weight * options.reverse_weight * nv / reverse.size();
       for (const ReverseMatch& m : reverse) {
         if (m.weight <= 0) continue;

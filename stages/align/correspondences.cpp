@@ -9,19 +9,6 @@
 
 namespace fourd::align::detail {
 
-// The rotation closest to m in the Frobenius norm (polar decomposition).
-Mat3d nearest_rotation(const Mat3d& m) {
-  Eigen::JacobiSVD<Mat3d> svd(m, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Mat3d u = svd.matrixU();
-  const Mat3d& v = svd.matrixV();
-  Mat3d r = u * v.transpose();
-  if (r.determinant() < 0) {
-    u.col(2) *= -1;
-    r = u * v.transpose();
-  }
-  return r;
-}
-
 // Closest compatible surface points of every vertex, robustly weighted.
 std::vector<Correspondence> find_correspondences(const std::vector<Vec3f>& positions,
                                                  const std::vector<Vec3f>& normals,
@@ -51,6 +38,7 @@ FrameSamples sample_frame(const SurfaceQuery& target, std::size_t count) {
   const std::size_t stride = std::max<std::size_t>(1, positions.size() / std::max<std::size_t>(count, 1));
   for (std::size_t i = 0; i < positions.size(); i += stride) {
     if (normals[i].isZero()) continue;  // not on any triangle
+    samples.vertices.push_back(static_cast<int>(i));
     samples.points.push_back(positions[i]);
     samples.normals.push_back(normals[i]);
     samples.confidence.push_back(target.vertex_confidence(i));

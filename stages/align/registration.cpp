@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fmt/format.h>
+#include <functional>
 #include <limits>
 
 #include "pipeline/core/error.h"
@@ -49,9 +50,20 @@ std::vector<Vec3f> vertex_normals(const std::vector<Vec3f>& positions,
 Eigen::Isometry3d rigid_icp(const std::vector<Vec3f>& points, const std::vector<Vec3f>& normals,
                             const SurfaceQuery& target, int iterations, double max_distance,
                             const RegistrationOptions& options) {
+  std::vector<Correspondence> matches;
+  return detail::rigid_icp(points, normals, target, iterations, max_distance, options, &matches);
+}
+
+namespace detail {
+
+Eigen::Isometry3d rigid_icp(const std::vector<Vec3f>& points, const std::vector<Vec3f>& normals,
+                            const SurfaceQuery& target, int iterations, double max_distance,
+                            const RegistrationOptions& options,
+                            std::vector<Correspondence>* last_matches) {
   Eigen::Isometry3d total = Eigen::Isometry3d::Identity();
   std::vector<Vec3f> current = points, current_normals = normals;
-  std::vector<Correspondence> matches;
+  std::vector<Correspondence>& matches = *last_matches;
+  matches.clear();
   for (int it = 0; it < iterations; ++it) {
     matches = find_correspondences(current, current_normals, target, max_distance,
                                    std::max(options.robust_scale, max_distance / 3), options,
@@ -99,6 +111,8 @@ Eigen::Isometry3d rigid_icp(const std::vector<Vec3f>& points, const std::vector<
   return total;
 }
 
+}  // namespace detail
+
 namespace {
 
 // One registration from `start`, the landmarks pulling the coarse levels. It begins at level
@@ -115,10 +129,14 @@ DeformationState register_pass(const TemplateModel& model, const DeformationStat
     for (std::size_t i = 0; i < data_vertices.size(); ++i) out[i] = all[data_vertices[i]];
     return out;
   };
+  // The latest matches both ways: the next search starts from them (the rigid fit's, of the
+  // same vertices, for the first).
+  std::vector<Correspondence> matches;
+  std::vector<ReverseMatch> reverse;
   if (options.rigid_iterations > 0) {
-    const Eigen::Isometry3d motion =
-        rigid_icp(of_data(positions), of_data(vertex_normals(positions, model.rest.triangles)),
-                  target, options.rigid_iterations, options.max_distance, options);
+    const Eigen::Isometry3d motion = detail::rigid_icp(
+        of_data(positions), of_data(vertex_normals(positions, model.rest.triangles)), target,
+        options.rigid_iterations, options.max_distance, options, &matches);
     apply_rigid(model, motion, &state);
   }
 
@@ -126,9 +144,6 @@ DeformationState register_pass(const TemplateModel& model, const DeformationStat
       options.reverse_weight > 0 ? sample_frame(target, data_vertices.size()) : FrameSamples{};
   GraphGaussNewton solver(model, options.reverse_weight > 0);
   FittedSurface fitted;
-  // The latest matches both ways: the next search starts from them.
-  std::vector<Correspondence> matches;
-  std::vector<ReverseMatch> reverse;
   const int levels = static_cast<int>(options.stiffness.size());
   for (int level = std::min(first_level, levels - 1); level < levels; ++level) {
     // The matching distance shrinks geometrically from max_distance to final_max_distance.
@@ -156,7 +171,7 @@ DeformationState register_pass(const TemplateModel& model, const DeformationStat
   }
   state.positions = deform_with_graph(model, state);
   const std::vector<Vec3f> graph_positions = state.positions;
-  refine_vertices(model, target, options, &state.positions);
+  refine_vertices(model, target, options, matches, samples, reverse, &state.positions);
   unfold(model, graph_positions, options.unfold_rings, &state.positions);
   return state;
 }
@@ -201,26 +216,46 @@ DeformationState register_to_surface(const TemplateModel& model, const Deformati
   };
   std::vector<Candidate> candidates;
   candidates.push_back({std::move(fit), first});
-  auto attempt = [&](const DeformationState& from, const char* what, int first_level = 0) {
-    DeformationState retry =
-        register_pass(model, from, target, options, tips.landmarks, first_level);
-    const FitStats stats = evaluate_fit(model, retry.positions, target, options);
-    log::debug("{}: both-ways rms {:.1f} mm -> {:.1f} mm, stretch {:.3f} -> {:.3f}", what,
-               1e3 * two_sided_rms(first), 1e3 * two_sided_rms(stats), first.stretch_rms,
-               stats.stretch_rms);
-    candidates.push_back({std::move(retry), stats});
+  // The retries, each from its own start (computed in its task).
+  struct Retry {
+    const char* what;
+    std::function<DeformationState()> from;
+    int first_level = 0;
   };
+  std::vector<Retry> retries;
   // A tip was missed: register again from the same start, pulled by the tips.
-  if (tips.missed) attempt(start, "tip landmarks");
+  if (tips.missed) retries.push_back({"tip landmarks", [&] { return start; }});
   // The limbs turned about their joints towards the tips first (the tips may all be covered
   // by a limb bent at the wrong joint).
   if (options.limb_fraction > 0) {
-    attempt(turn_limbs_to_tips(model, start, tips.landmarks, options.limb_fraction,
-                               options.limb_blend),
-            "limbs turned to the tips");
-    attempt(bend_limbs_along_frame(model, start, tips.landmarks, tips.frame_tips, tips.frame,
-                                   tips.frame_rings, options.limb_fraction, options.limb_band),
-            "limbs bent along the frame", options.bent_first_level);
+    retries.push_back({"limbs turned to the tips", [&] {
+                         return turn_limbs_to_tips(model, start, tips.landmarks,
+                                                   options.limb_fraction, options.limb_blend);
+                       }});
+    retries.push_back({"limbs bent along the frame",
+                       [&] {
+                         return bend_limbs_along_frame(model, start, tips.landmarks,
+                                                       tips.frame_tips, tips.frame,
+                                                       tips.frame_rings, options.limb_fraction,
+                                                       options.limb_band);
+                       },
+                       options.bent_first_level});
+  }
+  // They do not depend on each other: run side by side (each pass's own loops are parallel
+  // too, and much of a pass - the factorisations, the system's assembly - is serial), each
+  // with the same result as alone.
+  std::vector<Candidate> retried(retries.size());
+  tbb::parallel_for(std::size_t{0}, retries.size(), [&](std::size_t i) {
+    retried[i].state = register_pass(model, retries[i].from(), target, options, tips.landmarks,
+                                     retries[i].first_level);
+    retried[i].stats = evaluate_fit(model, retried[i].state.positions, target, options);
+  });
+  for (std::size_t i = 0; i < retries.size(); ++i) {
+    const FitStats& stats = retried[i].stats;
+    log::debug("{}: both-ways rms {:.1f} mm -> {:.1f} mm, stretch {:.3f} -> {:.3f}",
+               retries[i].what, 1e3 * two_sided_rms(first), 1e3 * two_sided_rms(stats),
+               first.stretch_rms, stats.stretch_rms);
+    candidates.push_back(std::move(retried[i]));
   }
   // A retry must fit clearly closer than the first fit (a tip matched to the wrong limb, a
   // foot to the other foot, can still fit a little closer); of those, the least stretched of

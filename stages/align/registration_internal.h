@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "pipeline/core/mesh.h"
+#include "pipeline/geometry/rotation.h"
 #include "pipeline/geometry/surface_query.h"
 #include "stages/align/registration.h"
 
@@ -36,9 +37,6 @@ inline Mat3d rotation_from_vector(const Vec3d& w) {
   if (angle < 1e-12) return Mat3d::Identity();
   return Eigen::AngleAxisd(angle, w / angle).toRotationMatrix();
 }
-
-// The rotation closest to m in the Frobenius norm (polar decomposition).
-Mat3d nearest_rotation(const Mat3d& m);
 
 // Cauchy weight: down-weights outliers (wrong matches, topology merges) smoothly.
 inline double robust_weight(double residual, double scale) {
@@ -92,6 +90,7 @@ struct ReverseMatch {
 // The frame points the reverse matches start from: about one per template vertex, spread
 // evenly over the frame's vertices, with their unit normals.
 struct FrameSamples {
+  std::vector<int> vertices;  // the frame vertex of each sample
   std::vector<Vec3f> points;
   std::vector<Vec3f> normals;
   std::vector<float> confidence;
@@ -119,6 +118,13 @@ std::vector<ReverseMatch> find_reverse_correspondences(
     const TemplateModel& model, const std::vector<Vec3f>& positions, const FrameSamples& samples,
     double max_distance, double robust_scale, const RegistrationOptions& options,
     FittedSurface* fitted, const std::vector<ReverseMatch>* previous = nullptr);
+
+// rigid_icp (registration.h), leaving in `last_matches` the points' matches of its last
+// iteration (to start the next search from).
+Eigen::Isometry3d rigid_icp(const std::vector<Vec3f>& points, const std::vector<Vec3f>& normals,
+                            const SurfaceQuery& target, int iterations, double max_distance,
+                            const RegistrationOptions& options,
+                            std::vector<Correspondence>* last_matches);
 
 // The index of the position nearest `p` (-1 when there is none).
 int nearest_vertex(const std::vector<Vec3f>& positions, const Vec3f& p);
@@ -200,8 +206,15 @@ std::vector<Mat3d> local_rotations(const TemplateModel& model, const std::vector
 SparseMatrix laplacian(const TemplateModel& model);
 
 // Vertex-level as-rigid-as-possible refinement towards the frame's surface (matched both ways),
-// regularised against the template's own shape (Sorkine & Alexa 2007).
+// regularised against the template's own shape (Sorkine & Alexa 2007). The graph fit's last
+// matches (`graph_matches` of model.data_vertices; `graph_reverse` of `graph_samples`) only
+// speed up the first searches: every vertex starts from a data vertex's match near it, every
+// frame sample from a graph sample's at or before its frame vertex.
 void refine_vertices(const TemplateModel& model, const SurfaceQuery& target,
-                     const RegistrationOptions& options, std::vector<Vec3f>* positions);
+                     const RegistrationOptions& options,
+                     const std::vector<Correspondence>& graph_matches,
+                     const FrameSamples& graph_samples,
+                     const std::vector<ReverseMatch>& graph_reverse,
+                     std::vector<Vec3f>* positions);
 
 }  // namespace fourd::align::detail

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "pipeline/core/error.h"
@@ -92,6 +93,54 @@ TEST(SurfaceQuery, ANearTriangleGivesTheSameAnswer) {
     }
   }
   EXPECT_GT(hinted, 3000);
+}
+
+// The search passes over the triangles whose plane is farther than the best so far; the answer
+// is still the nearest compatible triangle of all, for points far off the surface and for
+// points just off it (where the planes of the triangles around are about as near as the
+// nearest triangle).
+TEST(SurfaceQuery, TheAnswerIsTheNearestCompatibleTriangleOfAll) {
+  Mesh mesh = test::make_icosphere(3, 0.5f);
+  mesh.positions = bent(mesh.positions);
+  const SurfaceQuery query(mesh);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> coord(-0.9f, 0.9f), unit(0.0f, 1.0f);
+  std::uniform_int_distribution<int> triangle(0, static_cast<int>(mesh.triangles.size()) - 1);
+  int near_surface = 0;
+  for (int i = 0; i < 3000; ++i) {
+    Vec3f p(coord(rng), coord(rng), coord(rng));
+    if (i % 2) {
+      // Within 10 um to 1 cm of a random point of a random triangle, on either side.
+      const Tri& t = mesh.triangles[triangle(rng)];
+      const Vec3f& a = mesh.positions[t[0]];
+      const Vec3f& b = mesh.positions[t[1]];
+      const Vec3f& c = mesh.positions[t[2]];
+      float u = unit(rng), v = unit(rng);
+      if (u + v > 1) u = 1 - u, v = 1 - v;
+      const Vec3f n = (b - a).cross(c - a).normalized();
+      const float offset = std::pow(10.0f, -5 + 3 * unit(rng)) * (unit(rng) < 0.5f ? -1 : 1);
+      p = a + u * (b - a) + v * (c - a) + offset * n;
+      ++near_surface;
+    }
+    const Vec3f normal = Vec3f(coord(rng), coord(rng), coord(rng)).normalized();
+    for (const float min_cos : {-1.0f, 0.5f}) {
+      float best = std::numeric_limits<float>::infinity();
+      for (const Tri& t : mesh.triangles) {
+        const Vec3f& a = mesh.positions[t[0]];
+        const Vec3f& b = mesh.positions[t[1]];
+        const Vec3f& c = mesh.positions[t[2]];
+        if ((b - a).cross(c - a).normalized().dot(normal) < min_cos) continue;
+        Vec3f bary;
+        best = std::min(best, (closest_point_on_triangle(p, a, b, c, &bary) - p).norm());
+      }
+      const SurfaceHit hit = query.closest(p, 0.5f, normal, min_cos);
+      ASSERT_EQ(hit.found, best < 0.5f) << "query " << i;
+      if (hit.found) {
+        EXPECT_NEAR(hit.distance, best, 1e-7f) << "query " << i;
+      }
+    }
+  }
+  EXPECT_EQ(near_surface, 1500);
 }
 
 TEST(SurfaceQuery, ATriangleThatDegeneratesIsPassedOver) {
