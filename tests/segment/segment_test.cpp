@@ -196,29 +196,42 @@ Disc render_disc(const cv::Mat& empty, cv::Point2d centre, double radius, const 
   return d;
 }
 
+// A denim-blue disc (grey would pass for shadow) over a light wall, 0.35 of the image's height
+// in radius, off the pixel grid: the wall's plate learnt from noisy plates, the disc rendered
+// with `samples`, then the frame given the plates' noise.
+struct DiscOnAWall {
+  PlateModel model;
+  Disc disc;
+  int perimeter;  // [px]
+};
+template <class Samples>
+DiscOnAWall disc_on_a_wall(std::mt19937& rng, Samples samples) {
+  const cv::Mat empty(kH, kW, CV_8UC3, cv::Scalar(200, 205, 210));
+  DiscOnAWall scene;
+  scene.model = learn_plate(noisy_plates(empty, rng), "cam00");
+  const double radius = 0.35 * kH;
+  scene.disc = render_disc(empty, {kW / 2.0 + 0.3, kH / 2.0 - 0.2}, radius, {140, 70, 40}, samples);
+  add_noise(scene.disc.frame, rng, 2.0);
+  scene.perimeter = static_cast<int>(2 * M_PI * radius);
+  return scene;
+}
+
 // The outline of a performer against a contrasting plate: its pixels are partly both, and already
 // at a small coverage far more than the noise off the plate. A disc rendered 4x4 supersampled
 // (the pixel's colour is its coverage's mix): the silhouette is the pixels whose centre it
 // covers, not one pixel wider all round.
 TEST(SegmentPlate, MixedOutlinePixelsGoByTheirCoverage) {
   std::mt19937 rng(5);
-  cv::Mat empty(kH, kW, CV_8UC3, cv::Scalar(200, 205, 210));  // a light wall
-  const PlateModel model = learn_plate(noisy_plates(empty, rng), "cam00");
-  const cv::Point2d centre(kW / 2.0 + 0.3, kH / 2.0 - 0.2);
-  const double radius = 0.35 * kH;
-  const cv::Vec3f dark(140, 70, 40);  // denim blue (grey would pass for shadow)
-  const Disc disc = render_disc(empty, centre, radius, dark, [](int, int) {
+  const DiscOnAWall scene = disc_on_a_wall(rng, [](int, int) {
     std::vector<cv::Point2d> samples;
     for (int sy = 0; sy < 4; ++sy) {
       for (int sx = 0; sx < 4; ++sx) samples.emplace_back((sx + 0.5) / 4, (sy + 0.5) / 4);
     }
     return samples;
   });
-  cv::Mat frame = disc.frame;
-  const cv::Mat& truth = disc.truth;
-  add_noise(frame, rng, 2.0);
-  const cv::Mat mask = plate_silhouette(frame, model, SegmentOptions{});
-  const int perimeter = static_cast<int>(2 * M_PI * radius);
+  const cv::Mat& truth = scene.disc.truth;
+  const cv::Mat mask = plate_silhouette(scene.disc.frame, scene.model, SegmentOptions{});
+  const int perimeter = scene.perimeter;
   EXPECT_LT(cv::countNonZero(mask & ~truth), perimeter / 4) << "a ring of mixed pixels taken whole";
   EXPECT_LT(cv::countNonZero(truth & ~mask), perimeter / 4) << "the outline eaten into";
 }
@@ -230,13 +243,8 @@ TEST(SegmentPlate, MixedOutlinePixelsGoByTheirCoverage) {
 // than each pixel's own exact coverage at one half does.
 TEST(SegmentPlate, TheOutlineGoesByItsNeighboursCoverageToo) {
   std::mt19937 rng(11);
-  cv::Mat empty(kH, kW, CV_8UC3, cv::Scalar(200, 205, 210));  // a light wall
-  const PlateModel model = learn_plate(noisy_plates(empty, rng), "cam00");
-  const cv::Point2d centre(kW / 2.0 + 0.3, kH / 2.0 - 0.2);
-  const double radius = 0.35 * kH;
-  const cv::Vec3f dark(140, 70, 40);  // denim blue
   std::uniform_real_distribution<double> jitter(0.0, 1.0);
-  const Disc disc = render_disc(empty, centre, radius, dark, [&](int, int) {
+  const DiscOnAWall scene = disc_on_a_wall(rng, [&](int, int) {
     const double jx = jitter(rng), jy = jitter(rng);
     std::vector<cv::Point2d> samples;
     for (int i = 0; i < 4; ++i) {  // stratified in x and y, shifted per pixel
@@ -245,14 +253,13 @@ TEST(SegmentPlate, TheOutlineGoesByItsNeighboursCoverageToo) {
     }
     return samples;
   });
-  cv::Mat frame = disc.frame;
-  const cv::Mat &truth = disc.truth, &own = disc.own;  // own: each pixel by its own coverage
-  add_noise(frame, rng, 2.0);
+  // own: each pixel by its own coverage
+  const cv::Mat &truth = scene.disc.truth, &own = scene.disc.own;
   cv::Mat mask;
   cv::dilate(truth, mask, cv::Mat());
-  refine_plate_outline(mask, frame, model);
+  refine_plate_outline(mask, scene.disc.frame, scene.model);
   const int wrong = cv::countNonZero(mask ^ truth), wrong_own = cv::countNonZero(own ^ truth);
-  const int perimeter = static_cast<int>(2 * M_PI * radius);
+  const int perimeter = scene.perimeter;
   EXPECT_GT(wrong_own, perimeter / 10) << "4 samples a pixel should leave the outline noisy";
   EXPECT_LT(wrong, wrong_own * 3 / 4) << "no better than each pixel's own coverage";
   EXPECT_LT(cv::countNonZero(mask & ~truth), perimeter / 8) << "the ring of mixed pixels kept";
