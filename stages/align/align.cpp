@@ -1051,11 +1051,22 @@ class Diagnoser {
     add_ratios(k, &cues);
     return cues;
   }
-  // Frame k now has the fit `positions` (a retry's).
+  // Frame k now has the fit `positions` (a retry's); its take neighbours' jumps change with it.
   void update(int k, const std::vector<Vec3f>& positions) {
     out_[k].cues = cues_of(k, positions);
     out_[k].verdicts = judge(out_[k].cues, limits_);
     out_[k].retried = true;
+    const FrameStatus& s = status(k);
+    for (int step : {-1, 1}) {
+      const auto o = index_.find({s.take, s.frame + step});
+      if (o == index_.end()) continue;
+      FrameDiagnosis& d = out_[o->second];
+      const std::vector<Vec3f>& fit = reg_.fits[o->second].state.positions;
+      for (RegionCues& c : d.cues) c.jump = -1, c.jump_ratio = 0;
+      add_jumps(o->second, fit, &d.cues);
+      add_ratios(o->second, &d.cues);
+      d.verdicts = judge(d.cues, limits_);
+    }
   }
   void mark_retried(int k) { out_[k].retried = true; }
 
@@ -1096,36 +1107,35 @@ class Diagnoser {
   std::map<std::string, std::vector<double>> take_median_;
 };
 
-// Every aligned frame diagnosed wrong on its surface (residual, uncovered, stretch or folds),
-// worst first, is registered again from its neighbours in time and the most similar frames (all
-// aligned, diagnosed fine, not fitted from it); the fit with the least badness is kept when it
-// is less bad than the frame's. A frame wrong by its jump alone is not: on the default sample
-// the jump named 395 of 407 patch verdicts of the oracle run, of frames mostly right (precision
-// 0.23), and registering all 95 again changed 3 verdicts at 2.5x the stage's time.
-void retry_wrong_frames(const Plan& plan, Registrations& reg, TreeRegistration& registration,
-                        Diagnoser& diagnoses, const AlignOptions& options) {
+// Frames the self-diagnosis finds wrong, worst first, registered again from their neighbours
+// in time and the most similar frames (each aligned, not fitted from the frame, `eligible`): the
+// fit with the least badness is kept when its badness is under `keep_below` x the frame's, and
+// the frame's take neighbours are diagnosed again (their jump cue measures against it).
+void retry_frames(const Plan& plan, Registrations& reg, TreeRegistration& registration,
+                  Diagnoser& diagnoses, const AlignOptions& options, const char* what,
+                  const std::function<bool(const FrameDiagnosis&)>& wrong_enough,
+                  const std::function<bool(const FrameDiagnosis&)>& eligible, double keep_below) {
   const int n = diagnoses.size();
   auto status = [&](int k) -> const FrameStatus& { return plan.frames[plan.usable[k]].status; };
   std::vector<std::pair<double, int>> wrong;
   for (int k = 0; k < n; ++k) {
-    if (!reg.aligned[k] || !diagnoses[k].done) continue;
-    const std::vector<RegionVerdict>& v = diagnoses[k].verdicts;
-    if (std::any_of(v.begin(), v.end(), [](const RegionVerdict& r) { return r.cue != "jump"; })) {
-      wrong.emplace_back(badness(diagnoses[k].cues, diagnoses.limits()), k);
-    }
+    if (!reg.aligned[k] || !diagnoses[k].done || !wrong_enough(diagnoses[k])) continue;
+    wrong.emplace_back(badness(diagnoses[k].cues, diagnoses.limits()), k);
   }
   std::sort(wrong.rbegin(), wrong.rend());
-  if (!wrong.empty()) log::info("self-diagnosis: {} frames wrong on their surface, registering them again", wrong.size());
-  for (const auto& [before, k] : wrong) {
+  if (!wrong.empty()) log::info("self-diagnosis: {} frames {}, registering them again", wrong.size(), what);
+  for (const auto& [first, k] : wrong) {
     const FrameStatus& s = status(k);
+    // An earlier retry may have changed this frame's cues (a neighbour's new fit).
+    const double before = badness(diagnoses[k].cues, diagnoses.limits());
+    if (!wrong_enough(diagnoses[k])) continue;
     const int old_parent = reg.parent_of[k];  // clang captures no structured binding
     const std::vector<int> candidates =
-        retry_parents(plan, reg, k, options.reparent_attempts, [&](int p) {
-          return old_parent != p && diagnoses[p].verdicts.empty();
-        });
+        retry_parents(plan, reg, k, options.reparent_attempts,
+                      [&](int p) { return old_parent != p && eligible(diagnoses[p]); });
     diagnoses.mark_retried(k);
     std::vector<std::pair<int, Fit>> fits = registration.passing_fits(k, candidates);
-    double best = before;
+    double best = keep_below * before;
     int chosen = -1;
     for (std::size_t i = 0; i < fits.size(); ++i) {
       const double b = badness(diagnoses.cues_of(k, fits[i].second.state.positions), diagnoses.limits());
@@ -1144,6 +1154,42 @@ void retry_wrong_frames(const Plan& plan, Registrations& reg, TreeRegistration& 
     registration.adopt(k, std::move(fits[chosen].second), parent);
     diagnoses.update(k, reg.fits[k].state.positions);
   }
+}
+
+bool wrong_on_surface(const FrameDiagnosis& d) {
+  return std::any_of(d.verdicts.begin(), d.verdicts.end(),
+                     [](const RegionVerdict& r) { return r.cue != "jump"; });
+}
+
+// Every aligned frame diagnosed wrong on its surface (residual, uncovered, stretch or folds) is
+// registered again from frames diagnosed fine. A frame wrong by its jump alone is not: on the
+// default sample the jump named 395 of 407 patch verdicts of the oracle run, of frames mostly
+// right (precision 0.23), and registering all 95 again changed 3 verdicts at 2.5x the stage's
+// time.
+void retry_wrong_frames(const Plan& plan, Registrations& reg, TreeRegistration& registration,
+                        Diagnoser& diagnoses, const AlignOptions& options) {
+  retry_frames(plan, reg, registration, diagnoses, options, "wrong on their surface",
+               wrong_on_surface, [](const FrameDiagnosis& d) { return d.verdicts.empty(); }, 1.0);
+}
+
+// A jump retry's fit replaces the frame's only when it is this much less bad: the retry is for a
+// gross error (a limb on the other one: 13.4 -> 1.5 on second_body's walk_slow/11), and a fast
+// limb's fits from other parents differ by a percent (fps_6's jump_long/7: 12.42 -> 12.39).
+constexpr double kJumpRetryGain = 0.8;
+
+// Every aligned frame with a patch that jumps from its take neighbours by more than
+// `retry_jump_factor` x the jump limit is registered again from frames right on their surface
+// (a neighbour's own jump cue is off when this frame is wrong). A limb fitted to the other
+// one (second_body's walk_slow/11: both feet 0.3 m off, 13x the limit) is far beyond what the
+// motion between two frames explains; a fast hand is not (at most 4-5x at 12 fps).
+void retry_jumped_frames(const Plan& plan, Registrations& reg, TreeRegistration& registration,
+                         Diagnoser& diagnoses, const AlignOptions& options) {
+  retry_frames(
+      plan, reg, registration, diagnoses, options, "far from their neighbours in time",
+      [&](const FrameDiagnosis& d) {
+        return jumps_far(d.cues, diagnoses.limits(), options.retry_jump_factor);
+      },
+      [](const FrameDiagnosis& d) { return !wrong_on_surface(d); }, kJumpRetryGain);
 }
 
 json diagnosis_json(const FrameDiagnosis& d, const TemplateRegions& regions) {
@@ -1417,6 +1463,7 @@ void run_finish_job(const fs::path& out, const StageArgs& args, const AlignOptio
   for (int k = 0; k < n; ++k) has_result[k] = reg.aligned[k] || kept[k];
   Diagnoser diagnoses(model, plan, reg, has_result, options);
   if (options.retry_diagnosed) retry_wrong_frames(plan, reg, registration, diagnoses, options);
+  if (options.retry_jump_factor > 0) retry_jumped_frames(plan, reg, registration, diagnoses, options);
   const int diagnosed_wrong = flag_diagnosed(plan, diagnoses);
   set_depths(frames, plan.usable);
 

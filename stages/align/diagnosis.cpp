@@ -179,6 +179,12 @@ std::vector<RegionVerdict> judge(const std::vector<RegionCues>& cues, const Diag
   return out;
 }
 
+bool jumps_far(const std::vector<RegionCues>& cues, const DiagnosisLimits& limits, double factor) {
+  return std::any_of(cues.begin(), cues.end(), [&](const RegionCues& c) {
+    return c.jump > factor * limits.jump && c.jump_ratio > limits.jump_ratio;
+  });
+}
+
 double badness(const std::vector<RegionCues>& cues, const DiagnosisLimits& limits) {
   double worst = 0;
   for (const RegionCues& c : cues) {

@@ -72,6 +72,11 @@ struct RegionVerdict {
 // The patches over a limit (worst first, by value over limit).
 std::vector<RegionVerdict> judge(const std::vector<RegionCues>& cues, const DiagnosisLimits& limits);
 
+// Whether a patch jumps from the midpoint of its take neighbours by more than `factor` x the
+// jump limit (and over the limit's ratio to the take's median): a limb fitted to the other one,
+// not a fast limb (align.md, item 6).
+bool jumps_far(const std::vector<RegionCues>& cues, const DiagnosisLimits& limits, double factor);
+
 // A frame's badness for choosing between fits: the largest value/limit over patches and cues
 // (the jump's only where it is also over jump_ratio x the take's median); over 1: judged wrong.
 double badness(const std::vector<RegionCues>& cues, const DiagnosisLimits& limits);

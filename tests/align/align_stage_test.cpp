@@ -28,15 +28,16 @@ namespace fs = std::filesystem;
 // fresh connectivity; small template and graph so the test stays quick.
 class AlignSession {
  public:
+  using Takes = std::map<std::string, std::vector<double>>;  // take -> walk phase of each frame
+  static Takes two_walks() { return {{"walk_a", {0.0, 0.5, 1.0, 1.5, 2.0}}, {"walk_b", {3.0, 3.6, 4.2, 4.8}}}; }
+
   // `scale`: the whole capture at this size (1: the 1.67 m figure).
-  explicit AlignSession(float scale = 1) {
+  explicit AlignSession(float scale = 1, const Takes& takes = two_walks()) {
     std::string pattern = (fs::temp_directory_path() / "fourd_align_session_XXXXXX").string();
     if (::mkdtemp(pattern.data()) == nullptr) throw std::runtime_error("mkdtemp failed");
     root_ = pattern;
     write_config();
     const test::Figure figure = test::make_figure(0.02);
-    const std::map<std::string, std::vector<double>> takes = {
-        {"walk_a", {0.0, 0.5, 1.0, 1.5, 2.0}}, {"walk_b", {3.0, 3.6, 4.2, 4.8}}};
     for (const auto& [take, phases] : takes) {
       for (std::size_t f = 0; f < phases.size(); ++f) {
         const Mesh posed = test::pose_figure(figure, test::walk_pose(figure, phases[f], 0.05 * f));
@@ -287,6 +288,53 @@ TEST(AlignStage, OutlierFitsAreRegisteredAgainAndNeverEndWorse) {
   }
   EXPECT_GT(outliers, 0);
   EXPECT_GT(refitted, 0) << "no outlier found a better parent; the test no longer exercises refits";
+}
+
+// Frames whose fit jumps far from their neighbours in time are registered again, and keep
+// their fit when the subject really moved so: here walk_a's middle frame is half a stride out
+// of step (its legs where its neighbours' other legs are). With the factor set so low that
+// every jump over the self-diagnosis's limit counts, frames are retried, and no mesh changes:
+// no fit from another frame is much less bad than the right one.
+TEST(AlignStage, AFrameThatReallyJumpsIsRetriedAndKeepsItsFit) {
+  // A take long enough for its typical jump to be that of the walk, not of the odd frame.
+  AlignSession::Takes takes = {{"walk_a", {}}, {"walk_b", {3.0, 3.6, 4.2, 4.8}}};
+  for (int f = 0; f < 9; ++f) takes["walk_a"].push_back(0.5 * f + (f == 4 ? M_PI : 0.0));
+  AlignSession plain(1, takes);
+  plain.write_config("    retry_jump_factor: 0\n");
+  plain.run(StageArgs{});
+  AlignSession retry(1, takes);
+  retry.write_config("    retry_jump_factor: 0.001\n");
+  retry.run(StageArgs{});
+
+  const auto diagnoses = [](const fs::path& dir) {
+    std::map<std::string, nlohmann::json> out;
+    const auto report = nlohmann::json::parse(read_file(dir / "report.json"));
+    for (const auto& f : report.at("per_frame")) {
+      out[fmt::format("{}/{:06d}.ply", f.at("take").get<std::string>(), f.at("frame").get<int>())] =
+          f.at("diagnosis");
+    }
+    return out;
+  };
+  const auto before = diagnoses(plain.out()), after = diagnoses(retry.out());
+  ASSERT_EQ(after.size(), before.size());
+  const auto jumped = [](const nlohmann::json& d) {
+    const auto& wrong = d.at("wrong");
+    return std::any_of(wrong.begin(), wrong.end(), [](const nlohmann::json& v) { return v.at("cue") == "jump"; });
+  };
+  EXPECT_TRUE(jumped(before.at("walk_a/000004.ply"))) << "the out-of-step frame does not jump";
+  int retried = 0;
+  for (const auto& [file, d] : after) {
+    EXPECT_FALSE(before.at(file).at("retried").get<bool>()) << file;
+    if (d.at("retried").get<bool>()) {
+      ++retried;
+      EXPECT_TRUE(jumped(before.at(file))) << file << " retried without a jump";
+    }
+  }
+  EXPECT_GT(retried, 0);
+  const auto plain_meshes = meshes(plain.out()), retry_meshes = meshes(retry.out());
+  for (const auto& [file, mesh] : plain_meshes) {
+    EXPECT_TRUE(retry_meshes.at(file) == mesh) << file << " changed";
+  }
 }
 
 // Frames that cannot be used are excluded with the reason in the report, and nothing of theirs

@@ -6,6 +6,7 @@
 #include <set>
 
 #include "pipeline/geometry/remesh.h"
+#include "stages/align/align.h"
 #include "tests/align/align_test_data.h"
 
 namespace fourd::align {
@@ -116,6 +117,41 @@ TEST(Diagnosis, APatchThatSlidInOneFrameJumps) {
   ASSERT_EQ(verdicts.size(), 1u);
   EXPECT_EQ(verdicts[0].region, foot);
   EXPECT_EQ(verdicts[0].cue, "jump");
+}
+
+// A foot fitted to the other leg jumps far beyond what the motion between two frames explains,
+// and is registered again; a hand that moves fast is only flagged.
+TEST(Diagnosis, AFootOnTheOtherLegJumpsFarAFastHandDoesNot) {
+  const Fixture& f = fixture();
+  const int foot = lowest_region(f);
+  const double centre_y = [&] {
+    double lo = 1e9, hi = -1e9;
+    for (const Vec3f& p : f.templ.positions) lo = std::min<double>(lo, p.y()), hi = std::max<double>(hi, p.y());
+    return 0.5 * (lo + hi);
+  }();
+  std::vector<Vec3f> swapped = f.templ.positions, fast = f.templ.positions;
+  for (std::size_t i = 0; i < swapped.size(); ++i) {
+    if (f.regions.of_vertex[i] != foot) continue;
+    swapped[i].y() = static_cast<float>(2 * centre_y) - swapped[i].y();  // on the other leg
+    fast[i].x() += 0.1f;                                                // 10 cm ahead
+  }
+  const auto cues_of = [&](const std::vector<Vec3f>& now) {
+    const std::vector<double> jumps = region_jumps(f.regions, now, f.templ.positions, f.templ.positions);
+    std::vector<RegionCues> cues(jumps.size());
+    for (std::size_t r = 0; r < jumps.size(); ++r) {
+      cues[r].jump = jumps[r];
+      cues[r].jump_ratio = jumps[r] / 0.01;  // the take's typical jump: 1 cm
+    }
+    return cues;
+  };
+  const double factor = AlignOptions{}.retry_jump_factor;
+  const auto far = cues_of(swapped);
+  ASSERT_GT(far[foot].jump, factor * f.limits.jump) << "the figure's feet are too close to test";
+  EXPECT_TRUE(jumps_far(far, f.limits, factor));
+  const auto quick = cues_of(fast);
+  EXPECT_FALSE(judge(quick, f.limits).empty());  // flagged,
+  EXPECT_FALSE(jumps_far(quick, f.limits, factor));  // not registered again
+  EXPECT_FALSE(jumps_far(cues_of(f.templ.positions), f.limits, factor));
 }
 
 }  // namespace
