@@ -18,7 +18,8 @@ struct ExtremityOptions {
   double radius = 0.3;          // a tip is the farthest vertex within this geodesic radius [m]
                                 // (more than a foot's length: a heel is no tip)
   double min_fraction = 0.5;    // ... at least this fraction of the farthest vertex's distance
-  int max_count = 6;            // the farthest tips kept
+  int max_count = 8;            // the farthest tips kept (a person has 5: head, hands, feet;
+                                // a hoofed animal 8: four hooves, head, tail, two ears)
   double tolerance = 0.6;       // matched tips' geodesic distances differ by at most this
                                 // fraction of the template's
   double min_tolerance = 0.08;  // ... or this [m]

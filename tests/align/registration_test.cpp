@@ -205,6 +205,55 @@ TEST(Extremities, TheFiguresTipsAreItsHeadHandsAndFeet) {
   }
 }
 
+// A hoofed animal of capsules, 0.95 m tall to its ears, 1.4 m from nose to tail (x ahead, z
+// up): its tips are four hooves, the nose, the tail and two ears. The ears and the nose are
+// farther from the belly than the hooves, so a limit of 6 tips (a person's 5 and a spare)
+// drops two hooves.
+TEST(Extremities, AnAnimalsTipsIncludeEveryHoof) {
+  struct Capsule {
+    Eigen::Vector3d a, b;
+    double r;
+  };
+  std::vector<Capsule> parts = {{{-0.35, 0, 0.5}, {0.35, 0, 0.5}, 0.12},     // trunk
+                                {{0.35, 0, 0.55}, {0.5, 0, 0.75}, 0.06},     // neck
+                                {{0.5, 0, 0.75}, {0.7, 0, 0.62}, 0.06},      // head
+                                {{-0.42, 0, 0.6}, {-0.62, 0, 0.32}, 0.03}};  // tail
+  for (double side : {1.0, -1.0}) {
+    parts.push_back({{0.5, side * 0.04, 0.8}, {0.48, side * 0.08, 0.92}, 0.02});  // ear
+    for (double end : {1.0, -1.0}) {
+      parts.push_back({{end * 0.3, side * 0.08, 0.45}, {end * 0.3, side * 0.08, 0.04}, 0.04});
+    }
+  }
+  auto sdf = [&](const Eigen::Vector3d& p) {
+    double d = 1e9;
+    for (const Capsule& c : parts) d = test::smooth_min(d, test::segment_distance(p, c.a, c.b) - c.r, 0.01);
+    return d;
+  };
+  const Mesh mesh = test::isosurface_of(sdf, {-0.7, -0.2, -0.01}, {0.8, 0.2, 0.97}, 0.008);
+  // Seen from the middle of the belly, where the stage starts on the synthetic quadruped (the
+  // vertex nearest its centroid; on this one-capsule trunk that vertex is on the side, from
+  // where the top of the capsule's round end is a tip of its own, which a croup is not).
+  int centre = 0;
+  const Vec3f belly(0, 0, 0.38f);
+  for (std::size_t i = 0; i < mesh.num_vertices(); ++i) {
+    if ((mesh.positions[i] - belly).norm() < (mesh.positions[centre] - belly).norm()) {
+      centre = static_cast<int>(i);
+    }
+  }
+  // The radius scaled to the animal's size, as the stage scales it (1.4 / 1.75 m).
+  ExtremityOptions options;
+  options.radius *= 1.4 / 1.75;
+  const Extremities tips = find_extremities(mesh, edge_neighbours(mesh), centre, options);
+  EXPECT_EQ(tips.vertices.size(), 8u);
+  const std::vector<Vec3f> hooves = {{0.3f, 0.08f, 0.0f}, {-0.3f, 0.08f, 0.0f},
+                                     {0.3f, -0.08f, 0.0f}, {-0.3f, -0.08f, 0.0f}};
+  for (const Vec3f& e : hooves) {
+    double nearest = 1e9;
+    for (int v : tips.vertices) nearest = std::min(nearest, static_cast<double>((mesh.positions[v] - e).norm()));
+    EXPECT_LT(nearest, 0.05) << "no tip at the hoof " << e.transpose();
+  }
+}
+
 TEST(Extremities, MatchingPairsTipsOfCompatibleGeodesicDistanceClosestFirst) {
   Extremities templ, frame;
   templ.vertices = {0, 1, 2};
