@@ -53,7 +53,8 @@ struct AlignOptions {
   // sample it left walk_fast a cycle that does not close. Not a user option until it helps.
   bool retry_diagnosed = false;
   // A fit whose patch jumps from its take neighbours by more than this x the self-diagnosis's
-  // jump limit is registered again (align.md, item 6); 0: never.
+  // jump limit (a limb fitted to the other one) is registered again (align.md, item 6); 0:
+  // never. 6: second_body's swapped legs are 13x, a fast hand at 12 fps 4-5x.
   double retry_jump_factor = 6;
   double outlier_rms_factor = 2;
   bool exclude_non_manifold = true;  // non-manifold frames are excluded (else flagged only)
@@ -78,12 +79,6 @@ struct AlignOptions {
       "a fit with a larger vertex-to-surface rms failed [m]", Length{1e-06, 100});
     v("reparent_attempts", reparent_attempts,
       "other parents tried for a frame whose registration failed", Range{0, 100});
-    v("retry_jump_factor", retry_jump_factor,
-      "a fit with a patch this many times the self-diagnosis's jump limit (1.5 % of the "
-      "subject's size) from the midpoint of its neighbours in time (a limb fitted to the other "
-      "one) is registered again from its neighbours and similar frames, the least wrong fit "
-      "kept; 0: never",
-      Range{0, 1000});
     v("outlier_rms_factor", outlier_rms_factor,
       "a fit that passed with more than this x the median rms of the aligned frames is "
       "registered again from its neighbours in time and up to reparent_attempts other similar "

@@ -299,11 +299,16 @@ TEST(AlignStage, AFrameThatReallyJumpsIsRetriedAndKeepsItsFit) {
   // A take long enough for its typical jump to be that of the walk, not of the odd frame.
   AlignSession::Takes takes = {{"walk_a", {}}, {"walk_b", {3.0, 3.6, 4.2, 4.8}}};
   for (int f = 0; f < 9; ++f) takes["walk_a"].push_back(0.5 * f + (f == 4 ? M_PI : 0.0));
-  AlignSession plain(1, takes);
-  plain.write_config("    retry_jump_factor: 0\n");
+  AlignSession plain(1, takes), retry(1, takes);
+  const auto with_factor = [base = plain.adjust](double factor) {
+    return [base, factor](AlignOptions& o) {
+      base(o);
+      o.retry_jump_factor = factor;
+    };
+  };
+  plain.adjust = with_factor(0);
   plain.run(StageArgs{});
-  AlignSession retry(1, takes);
-  retry.write_config("    retry_jump_factor: 0.001\n");
+  retry.adjust = with_factor(0.001);
   retry.run(StageArgs{});
 
   const auto diagnoses = [](const fs::path& dir) {
