@@ -17,6 +17,8 @@ struct AlignedFrameError {
 
 struct AlignmentErrors {
   std::string root;  // "<take>/<frame>" the template was bound at
+  int rebound = 0;   // template vertices whose closest truth point at the root tore from their
+                     // neighbours' (two parts touching there), bound to their neighbours' part
   std::vector<Tri> triangles;             // the template's
   std::vector<AlignedFrameError> frames;  // sorted by take, frame
   double correspondence_rms = 0;  // over every vertex of every frame [m]
@@ -33,8 +35,9 @@ struct AlignmentErrors {
 // Measures the aligned meshes <align_dir>/<take>/<frame>.ply (template <align_dir>/template.ply,
 // root frame from <align_dir>/tree.json) against the ground-truth meshes
 // <truth_meshes>/<take>/<frame>.ply (one consistent topology): each template vertex is bound to
-// its closest ground-truth surface point at the root frame (barycentric on that frame's mesh)
-// and followed through the ground truth; with `with_surface`, also the distance of each
+// its closest ground-truth surface point at the root frame (barycentric on that frame's mesh),
+// or, where that point is on another part of the truth than its neighbours' (parts touching at
+// the root), to the closest point on its neighbours' part; and followed through the ground truth; with `with_surface`, also the distance of each
 // aligned vertex to the input surface <input_dir>/<take>/<frame>.ply. Frames are read from
 // `frames_dir` (default: align_dir; e.g. align_dir/sequential for the baseline).
 AlignmentErrors measure_alignment(const std::filesystem::path& align_dir,

@@ -74,5 +74,39 @@ TEST_F(AlignMeasure, FrameLeftBehindAndFlippedTrianglesAreMeasured) {
   EXPECT_NEAR(e.flipped_error_median, pushed, 1e-5);
 }
 
+// Two balls touch at the root frame and part in the next; the template is the first ball, its
+// vertex at the contact pushed 4 mm out (as a reconstruction bridges a contact), so that its
+// closest truth point is on the other ball. It is bound to its own ball, as its neighbours are:
+// a perfect alignment of the first ball measures 4 mm there, not the 0.3 m the other ball moved.
+TEST_F(AlignMeasure, AVertexAtAContactIsBoundToItsNeighboursPart) {
+  const Mesh ball = test::make_icosphere(3, 0.1f);
+  // The template's vertex facing +x, and the other ball 5 mm beyond it at the root.
+  int contact = 0;
+  for (std::size_t i = 0; i < ball.num_vertices(); ++i) {
+    if (ball.positions[i].x() > ball.positions[contact].x()) contact = static_cast<int>(i);
+  }
+  const auto two_balls = [&](float gap_x) {
+    Mesh both = ball;
+    const int offset = static_cast<int>(ball.num_vertices());
+    for (const Vec3f& p : ball.positions) both.positions.push_back(p + Vec3f(0.2f + gap_x, 0, 0));
+    for (const Tri& t : ball.triangles) both.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
+    return both;
+  };
+  Mesh templ = ball;
+  templ.positions[contact] += Vec3f(0.004f, 0, 0);
+  const Mesh truth0 = two_balls(0.005f), truth1 = two_balls(0.3f);
+  write_ply(root_ / "truth" / "t" / "000000.ply", truth0);
+  write_ply(root_ / "truth" / "t" / "000001.ply", truth1);
+  write_ply(root_ / "align" / "template.ply", templ);
+  write_ply(root_ / "align" / "t" / "000000.ply", templ);
+  write_ply(root_ / "align" / "t" / "000001.ply", templ);  // the first ball does not move
+  const AlignmentErrors e = measure();
+  EXPECT_EQ(e.rebound, 1);
+  ASSERT_EQ(e.frames.size(), 2u);
+  for (const AlignedFrameError& f : e.frames) {
+    EXPECT_NEAR(f.correspondence[contact], 0.004, 1e-4) << "frame " << f.frame;
+  }
+}
+
 }  // namespace
 }  // namespace fourd::validate
