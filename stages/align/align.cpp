@@ -1111,7 +1111,7 @@ class Diagnoser {
 // in time and the most similar frames (each aligned, not fitted from the frame, `eligible`): the
 // fit with the least badness is kept when its badness is under `keep_below` x the frame's, and
 // the frame's take neighbours are diagnosed again (their jump cue measures against it).
-void retry_frames(const Plan& plan, Registrations& reg, TreeRegistration& registration,
+void retry_frames(Plan& plan, Registrations& reg, TreeRegistration& registration,
                   Diagnoser& diagnoses, const AlignOptions& options, const char* what,
                   const std::function<bool(const FrameDiagnosis&)>& wrong_enough,
                   const std::function<bool(const FrameDiagnosis&)>& eligible, double keep_below) {
@@ -1152,6 +1152,8 @@ void retry_frames(const Plan& plan, Registrations& reg, TreeRegistration& regist
     log::info("{}: registered again from {}: badness {:.2f} -> {:.2f}", frame_label(s),
               frame_label(status(parent)), before, best);
     registration.adopt(k, std::move(fits[chosen].second), parent);
+    std::vector<std::string>& flags = plan.frames[plan.usable[k]].status.flags;
+    if (std::find(flags.begin(), flags.end(), "refitted") == flags.end()) flags.push_back("refitted");
     diagnoses.update(k, reg.fits[k].state.positions);
   }
 }
@@ -1166,7 +1168,7 @@ bool wrong_on_surface(const FrameDiagnosis& d) {
 // default sample the jump named 395 of 407 patch verdicts of the oracle run, of frames mostly
 // right (precision 0.23), and registering all 95 again changed 3 verdicts at 2.5x the stage's
 // time.
-void retry_wrong_frames(const Plan& plan, Registrations& reg, TreeRegistration& registration,
+void retry_wrong_frames(Plan& plan, Registrations& reg, TreeRegistration& registration,
                         Diagnoser& diagnoses, const AlignOptions& options) {
   retry_frames(plan, reg, registration, diagnoses, options, "wrong on their surface",
                wrong_on_surface, [](const FrameDiagnosis& d) { return d.verdicts.empty(); }, 1.0);
@@ -1182,7 +1184,7 @@ constexpr double kJumpRetryGain = 0.8;
 // (a neighbour's own jump cue is off when this frame is wrong). A limb fitted to the other
 // one (second_body's walk_slow/11: both feet 0.3 m off, 13x the limit) is far beyond what the
 // motion between two frames explains; a fast hand is not (at most 4-5x at 12 fps).
-void retry_jumped_frames(const Plan& plan, Registrations& reg, TreeRegistration& registration,
+void retry_jumped_frames(Plan& plan, Registrations& reg, TreeRegistration& registration,
                          Diagnoser& diagnoses, const AlignOptions& options) {
   retry_frames(
       plan, reg, registration, diagnoses, options, "far from their neighbours in time",
