@@ -10,6 +10,7 @@
 #include <cmath>
 #include <fmt/ranges.h>
 #include <functional>
+#include <ranges>
 #include <limits>
 #include <map>
 #include <mutex>
@@ -1116,7 +1117,7 @@ void retry_frames(Plan& plan, Registrations& reg, TreeRegistration& registration
                   const std::function<bool(const FrameDiagnosis&)>& wrong_enough,
                   const std::function<bool(const FrameDiagnosis&)>& eligible, double keep_below) {
   const int n = diagnoses.size();
-  auto status = [&](int k) -> const FrameStatus& { return plan.frames[plan.usable[k]].status; };
+  auto status = [&](int k) -> FrameStatus& { return plan.frames[plan.usable[k]].status; };
   std::vector<std::pair<double, int>> wrong;
   for (int k = 0; k < n; ++k) {
     if (!reg.aligned[k] || !diagnoses[k].done || !wrong_enough(diagnoses[k])) continue;
@@ -1124,12 +1125,12 @@ void retry_frames(Plan& plan, Registrations& reg, TreeRegistration& registration
   }
   std::sort(wrong.rbegin(), wrong.rend());
   if (!wrong.empty()) log::info("self-diagnosis: {} frames {}, registering them again", wrong.size(), what);
-  for (const auto& [first, k] : wrong) {
+  for (const int k : wrong | std::views::values) {
     const FrameStatus& s = status(k);
     // An earlier retry may have changed this frame's cues (a neighbour's new fit).
     const double before = badness(diagnoses[k].cues, diagnoses.limits());
     if (!wrong_enough(diagnoses[k])) continue;
-    const int old_parent = reg.parent_of[k];  // clang captures no structured binding
+    const int old_parent = reg.parent_of[k];
     const std::vector<int> candidates =
         retry_parents(plan, reg, k, options.reparent_attempts,
                       [&](int p) { return old_parent != p && eligible(diagnoses[p]); });
@@ -1152,7 +1153,7 @@ void retry_frames(Plan& plan, Registrations& reg, TreeRegistration& registration
     log::info("{}: registered again from {}: badness {:.2f} -> {:.2f}", frame_label(s),
               frame_label(status(parent)), before, best);
     registration.adopt(k, std::move(fits[chosen].second), parent);
-    std::vector<std::string>& flags = plan.frames[plan.usable[k]].status.flags;
+    std::vector<std::string>& flags = status(k).flags;
     if (std::find(flags.begin(), flags.end(), "refitted") == flags.end()) flags.push_back("refitted");
     diagnoses.update(k, reg.fits[k].state.positions);
   }
