@@ -10,7 +10,6 @@
 #include <cmath>
 #include <fmt/ranges.h>
 #include <functional>
-#include <ranges>
 #include <limits>
 #include <map>
 #include <mutex>
@@ -1125,7 +1124,8 @@ void retry_frames(Plan& plan, Registrations& reg, TreeRegistration& registration
   }
   std::sort(wrong.rbegin(), wrong.rend());
   if (!wrong.empty()) log::info("self-diagnosis: {} frames {}, registering them again", wrong.size(), what);
-  for (const int k : wrong | std::views::values) {
+  for (const std::pair<double, int>& worst_first : wrong) {
+    const int k = worst_first.second;
     const FrameStatus& s = status(k);
     // An earlier retry may have changed this frame's cues (a neighbour's new fit).
     const double before = badness(diagnoses[k].cues, diagnoses.limits());
