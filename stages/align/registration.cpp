@@ -201,7 +201,8 @@ std::size_t least_stretched_close_fit(const std::vector<FitStats>& fits, double 
 
 DeformationState register_to_surface(const TemplateModel& model, const DeformationState& start,
                                      const SurfaceQuery& target,
-                                     const RegistrationOptions& options) {
+                                     const RegistrationOptions& options,
+                                     RegistrationTrace* trace) {
   DeformationState fit = register_pass(model, start, target, options, {});
   if (options.landmark_weight <= 0) return fit;
   // A fit that covers the whole frame has followed every limb; the tips are looked for only
@@ -210,28 +211,28 @@ DeformationState register_to_surface(const TemplateModel& model, const Deformati
   if (first.uncovered_fraction <= options.landmark_uncovered) return fit;
   const TipLandmarks tips = tip_landmarks(model, fit.positions, target, options);
   if (tips.landmarks.empty()) return fit;
-  struct Candidate {
-    DeformationState state;
-    FitStats stats;
-  };
-  std::vector<Candidate> candidates;
-  candidates.push_back({std::move(fit), first});
-  // The retries, each from its own start (computed in its task).
+  // The retries, each from its own start (computed in its task). The limbs turned about their
+  // joints are tried only when neither the tips alone nor the limbs bent along the frame give
+  // a fit that covers the frame; where one does, the turned limbs landed on the same fit
+  // (docs/align.md, "Speed of one registration").
   struct Retry {
     const char* what;
     std::function<DeformationState()> from;
     int first_level = 0;
+    bool second = false;  // only when the others leave part of the frame uncovered
   };
   std::vector<Retry> retries;
   // A tip was missed: register again from the same start, pulled by the tips.
   if (tips.missed) retries.push_back({"tip landmarks", [&] { return start; }});
-  // The limbs turned about their joints towards the tips first (the tips may all be covered
-  // by a limb bent at the wrong joint).
   if (options.limb_fraction > 0) {
-    retries.push_back({"limbs turned to the tips", [&] {
+    // The limbs turned about their joints towards the tips first (the tips may all be covered
+    // by a limb bent at the wrong joint).
+    retries.push_back({"limbs turned to the tips",
+                       [&] {
                          return turn_limbs_to_tips(model, start, tips.landmarks,
                                                    options.limb_fraction, options.limb_blend);
-                       }});
+                       },
+                       0, true});
     retries.push_back({"limbs bent along the frame",
                        [&] {
                          return bend_limbs_along_frame(model, start, tips.landmarks,
@@ -241,37 +242,61 @@ DeformationState register_to_surface(const TemplateModel& model, const Deformati
                        },
                        options.bent_first_level});
   }
-  // They do not depend on each other: run side by side (each pass's own loops are parallel
+  std::vector<DeformationState> retried(retries.size());
+  std::vector<FitStats> stats(retries.size());
+  std::vector<char> ran(retries.size(), 0);  // written from the tasks: not vector<bool>
+  // One round: the retries of that round side by side (each pass's own loops are parallel
   // too, and much of a pass - the factorisations, the system's assembly - is serial), each
   // with the same result as alone.
-  std::vector<Candidate> retried(retries.size());
-  tbb::parallel_for(std::size_t{0}, retries.size(), [&](std::size_t i) {
-    retried[i].state = register_pass(model, retries[i].from(), target, options, tips.landmarks,
-                                     retries[i].first_level);
-    retried[i].stats = evaluate_fit(model, retried[i].state.positions, target, options);
-  });
-  for (std::size_t i = 0; i < retries.size(); ++i) {
-    const FitStats& stats = retried[i].stats;
-    log::debug("{}: both-ways rms {:.1f} mm -> {:.1f} mm, stretch {:.3f} -> {:.3f}",
-               retries[i].what, 1e3 * two_sided_rms(first), 1e3 * two_sided_rms(stats),
-               first.stretch_rms, stats.stretch_rms);
-    candidates.push_back(std::move(retried[i]));
-  }
+  const auto run_round = [&](bool second) {
+    std::vector<std::size_t> tasks;
+    for (std::size_t i = 0; i < retries.size(); ++i) {
+      if (retries[i].second == second) tasks.push_back(i);
+    }
+    tbb::parallel_for(std::size_t{0}, tasks.size(), [&](std::size_t t) {
+      const std::size_t i = tasks[t];
+      retried[i] = register_pass(model, retries[i].from(), target, options, tips.landmarks,
+                                 retries[i].first_level);
+      stats[i] = evaluate_fit(model, retried[i].positions, target, options);
+      ran[i] = 1;
+    });
+  };
   // A retry must fit clearly closer than the first fit (a tip matched to the wrong limb, a
-  // foot to the other foot, can still fit a little closer); of those, the least stretched of
-  // the about closest wins.
+  // foot to the other foot, can still fit a little closer).
+  const auto closer_than_first = [&](std::size_t i) {
+    return ran[i] && two_sided_rms(stats[i]) < options.landmark_gain * two_sided_rms(first);
+  };
+  run_round(false);
+  bool covered = false;
+  for (std::size_t i = 0; i < retries.size(); ++i) {
+    covered = covered || (closer_than_first(i) &&
+                          stats[i].uncovered_fraction <= options.landmark_uncovered);
+  }
+  if (!covered) run_round(true);
+  for (std::size_t i = 0; i < retries.size(); ++i) {
+    if (!ran[i]) continue;
+    if (trace) trace->retries.push_back(retries[i].what);
+    log::debug("{}: both-ways rms {:.1f} mm -> {:.1f} mm, stretch {:.3f} -> {:.3f}",
+               retries[i].what, 1e3 * two_sided_rms(first), 1e3 * two_sided_rms(stats[i]),
+               first.stretch_rms, stats[i].stretch_rms);
+  }
+  // Of the retries clearly closer than the first fit, the least stretched of the about
+  // closest wins.
   std::vector<std::size_t> closer;
   std::vector<FitStats> closer_stats;
-  for (std::size_t i = 1; i < candidates.size(); ++i) {
-    if (two_sided_rms(candidates[i].stats) < options.landmark_gain * two_sided_rms(first)) {
+  for (std::size_t i = 0; i < retries.size(); ++i) {
+    if (closer_than_first(i)) {
       closer.push_back(i);
-      closer_stats.push_back(candidates[i].stats);
+      closer_stats.push_back(stats[i]);
     }
   }
-  if (closer.empty()) return std::move(candidates[0].state);
+  if (closer.empty()) return fit;
   const std::size_t chosen =
-      least_stretched_close_fit(closer_stats, options.stretch_tolerance, options.stretch_margin);
-  return std::move(candidates[closer[chosen]].state);
+      closer[least_stretched_close_fit(closer_stats, options.stretch_tolerance,
+                                       options.stretch_margin)];
+  log::debug("kept: {}", retries[chosen].what);
+  if (trace) trace->kept = retries[chosen].what;
+  return std::move(retried[chosen]);
 }
 
 FitStats evaluate_fit(const TemplateModel& model, const std::vector<Vec3f>& positions,

@@ -39,6 +39,7 @@
 // unfolding), landmarks.cpp (the frame's tips and the limb starts).
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <string>
 #include <vector>
 
 #include "pipeline/core/config.h"
@@ -247,11 +248,18 @@ DeformationState bend_limbs_along_frame(const TemplateModel& model, const Deform
                                         const std::vector<std::vector<int>>& frame_rings,
                                         double limb_fraction, double band);
 
+// What a registration tried beyond its first fit.
+struct RegistrationTrace {
+  std::vector<std::string> retries;  // the retries run
+  std::string kept;                  // the retry kept; empty: the first fit
+};
+
 // Registers the template, starting from `start` (e.g. the parent frame's deformation moved by
-// a rigid guess), to the target surface.
+// a rigid guess), to the target surface. `trace`, when given, receives the retries it ran.
 DeformationState register_to_surface(const TemplateModel& model, const DeformationState& start,
                                      const SurfaceQuery& target,
-                                     const RegistrationOptions& options);
+                                     const RegistrationOptions& options,
+                                     RegistrationTrace* trace = nullptr);
 
 // The template's triangles over `positions` (a fit as a mesh).
 Mesh fitted_mesh(const TemplateModel& model, const std::vector<Vec3f>& positions);

@@ -180,6 +180,18 @@ PosedFrame posed_frame(const Mesh& templ, const test::Pose& pose) {
   return out;
 }
 
+// The template (the figure re-meshed to 2,000 vertices) and a frame in which the right arm is
+// raised 90 degrees forward: its first fit leaves the arm behind.
+struct ArmRaisedForward {
+  Mesh templ = remesh_to_vertex_count(joined_figure().rest, 2000);
+  PosedFrame posed = posed_frame(templ, pose());
+  static test::Pose pose() {
+    test::Pose p = test::rest_pose(joined_figure());
+    p.rotation[4] = test::rot(-90, Eigen::Vector3d::UnitY());
+    return p;
+  }
+};
+
 TEST(Extremities, TheFiguresTipsAreItsHeadHandsAndFeet) {
   const test::Figure& figure = joined_figure();
   const Mesh& mesh = figure.rest;
@@ -296,13 +308,10 @@ TEST(Extremities, ACoveredTipAnchorsTheTemplateTipOfItsOwnLimb) {
 TEST(Registration, AnArmRaisedFarIsFollowedByItsTip) {
   // The template hangs its arms; the frame holds the right arm straight forward. Closest points
   // alone leave the template's arm on the side of the body; the matched hand tips pull it up.
-  const test::Figure& figure = joined_figure();
-  const Mesh templ = remesh_to_vertex_count(figure.rest, 2000);
-  test::Pose pose = test::rest_pose(figure);
-  pose.rotation[4] = test::rot(-90, Eigen::Vector3d::UnitY());
-  const PosedFrame posed = posed_frame(templ, pose);
-  const SurfaceQuery target(posed.frame);
-  const std::vector<Vec3f>& expected = posed.expected;
+  const ArmRaisedForward data;
+  const Mesh& templ = data.templ;
+  const SurfaceQuery target(data.posed.frame);
+  const std::vector<Vec3f>& expected = data.posed.expected;
   auto register_with = [&](double landmark_weight) {
     RegistrationOptions options;
     options.landmark_weight = landmark_weight;
@@ -319,6 +328,40 @@ TEST(Registration, AnArmRaisedFarIsFollowedByItsTip) {
   EXPECT_LT(with, 0.5 * without);
   EXPECT_LT(with, 0.03);
   EXPECT_LT(with_stats.uncovered_fraction, 0.01);
+}
+
+TEST(Registration, TheLimbsAreTurnedOnlyWhenTheOtherRetriesLeaveTheFrameUncovered) {
+  // The arm raised far forward: the first fit leaves the arm uncovered, and the fit the tips
+  // pull (or the one from the limbs bent along the frame) covers it, so turning the limbs is
+  // not tried; it is when no retry may count as covering the frame.
+  const ArmRaisedForward data;
+  const Mesh& templ = data.templ;
+  const SurfaceQuery target(data.posed.frame);
+  const auto register_traced = [&](const RegistrationOptions& options) {
+    const TemplateModel model = build_template_model(templ, options);
+    RegistrationTrace trace;
+    const DeformationState fit =
+        register_to_surface(model, rest_state(model), target, options, &trace);
+    const double rms = rms_error(fit.positions, data.posed.expected);
+    std::cout << "retries:";
+    for (const std::string& r : trace.retries) std::cout << " [" << r << "]";
+    std::cout << ", kept [" << trace.kept << "], correspondence rms " << rms * 1e3 << " mm\n";
+    return std::pair{trace, rms};
+  };
+  const auto turned = [](const RegistrationTrace& t) {
+    return std::count(t.retries.begin(), t.retries.end(), "limbs turned to the tips");
+  };
+  const auto [staged, staged_rms] = register_traced(RegistrationOptions{});
+  EXPECT_FALSE(staged.retries.empty());
+  EXPECT_FALSE(staged.kept.empty());
+  EXPECT_EQ(turned(staged), 0);
+  EXPECT_LT(staged_rms, 0.03);
+
+  RegistrationOptions never_covered;
+  never_covered.landmark_uncovered = -1;
+  const auto [every, every_rms] = register_traced(never_covered);
+  EXPECT_EQ(turned(every), 1);
+  EXPECT_LT(every_rms, 0.03);
 }
 
 TEST(Registration, ALimbIsTurnedAsAWholeTowardsItsTip) {
