@@ -158,6 +158,16 @@ DiagnosisLimits diagnosis_limits(double size) {
   return limits;
 }
 
+namespace {
+
+// Whether a patch jumps from its take neighbours' midpoint by more than `factor` x the jump
+// limit, and by more than the limit's ratio to the take's median jump of the patch.
+bool jumps_over(const RegionCues& c, const DiagnosisLimits& limits, double factor) {
+  return c.jump > factor * limits.jump && c.jump_ratio > limits.jump_ratio;
+}
+
+}  // namespace
+
 std::vector<RegionVerdict> judge(const std::vector<RegionCues>& cues, const DiagnosisLimits& limits) {
   std::vector<RegionVerdict> out;
   for (std::size_t k = 0; k < cues.size(); ++k) {
@@ -169,9 +179,7 @@ std::vector<RegionVerdict> judge(const std::vector<RegionCues>& cues, const Diag
     if (c.flipped >= limits.flipped) {
       out.push_back({r, "flipped", static_cast<double>(c.flipped), static_cast<double>(limits.flipped)});
     }
-    if (c.jump > limits.jump && c.jump_ratio > limits.jump_ratio) {
-      out.push_back({r, "jump", c.jump, limits.jump});
-    }
+    if (jumps_over(c, limits, 1)) out.push_back({r, "jump", c.jump, limits.jump});
   }
   std::sort(out.begin(), out.end(), [](const RegionVerdict& a, const RegionVerdict& b) {
     return a.value / a.limit > b.value / b.limit;
@@ -180,9 +188,8 @@ std::vector<RegionVerdict> judge(const std::vector<RegionCues>& cues, const Diag
 }
 
 bool jumps_far(const std::vector<RegionCues>& cues, const DiagnosisLimits& limits, double factor) {
-  return std::any_of(cues.begin(), cues.end(), [&](const RegionCues& c) {
-    return c.jump > factor * limits.jump && c.jump_ratio > limits.jump_ratio;
-  });
+  return std::any_of(cues.begin(), cues.end(),
+                     [&](const RegionCues& c) { return jumps_over(c, limits, factor); });
 }
 
 double badness(const std::vector<RegionCues>& cues, const DiagnosisLimits& limits) {
